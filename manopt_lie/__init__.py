@@ -1,0 +1,43 @@
+"""manopt_lie: optimization on Riemannian manifolds and Lie groups.
+
+Lie groups with exact, batched calculus (CONVENTIONS.md §1–5)::
+
+    from manopt_lie import SO3
+    X = SO3.exp(tau)                  # tau: (..., 3)
+    Y, J_X, J_tau = X.rplus(d, jac=True)
+"""
+
+from .errors import IndefiniteMatrixError, NonFiniteError, NotInGroupError, ShapeError
+from .lie import (
+    SE2,
+    SE3,
+    SO2,
+    SO3,
+    LieGroup,
+    Rn,
+    left_to_right_covariance,
+    mean_and_covariance,
+    propagate_covariance,
+    right_to_left_covariance,
+    sample,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "LieGroup",
+    "SO2",
+    "SO3",
+    "SE2",
+    "SE3",
+    "Rn",
+    "propagate_covariance",
+    "sample",
+    "mean_and_covariance",
+    "right_to_left_covariance",
+    "left_to_right_covariance",
+    "ShapeError",
+    "NonFiniteError",
+    "NotInGroupError",
+    "IndefiniteMatrixError",
+]

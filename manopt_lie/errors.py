@@ -1,0 +1,26 @@
+"""Exceptions raised on bad input (all are ``ValueError`` subclasses, CONVENTIONS §7)."""
+
+from __future__ import annotations
+
+__all__ = ["ShapeError", "NonFiniteError", "NotInGroupError", "IndefiniteMatrixError"]
+
+
+class ShapeError(ValueError):
+    """An array does not have the shape an operation needs.
+
+    The message names the argument, the expected shape (``...`` for any batch
+    axes) and the actual shape.
+    """
+
+
+class NonFiniteError(ValueError):
+    """An input holds ``nan`` or ``inf``."""
+
+
+class NotInGroupError(ValueError):
+    """A matrix is not an element of the group (not orthonormal, a reflection,
+    or a homogeneous matrix whose last row is not ``[0, ..., 0, 1]``)."""
+
+
+class IndefiniteMatrixError(ValueError):
+    """A covariance or information matrix is not symmetric positive (semi)definite."""

@@ -1,0 +1,126 @@
+"""Kernels shared by the matrix groups: rotations and homogeneous transforms.
+
+A homogeneous transform of dimension ``d`` is ``T = [[R, t], [0, 1]]`` of shape
+``(..., d+1, d+1)``; its blocks are read and written directly, never through a
+``(d+1)×(d+1)`` matrix product, which would multiply by the constant last row.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import NotInGroupError
+from ._checks import FloatArray
+
+# Largest |RᵀR − I| entry, and |last row − [0 … 0 1]| entry, accepted by ``from_matrix``.
+DEFAULT_TOL = 1e-6
+
+
+def matvec(m: FloatArray, v: FloatArray) -> FloatArray:
+    """``M v`` over batch axes."""
+    return np.einsum("...ij,...j->...i", m, v)
+
+
+def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
+    """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``)."""
+    d = r.shape[-1]
+    return np.stack([sum(r[..., i, j] * v[..., j] for j in range(d)) for i in range(d)], axis=-1)
+
+
+def compose_rotations(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.matmul(a, b)
+
+
+def assemble(r: FloatArray, t: FloatArray) -> FloatArray:
+    """``[[R, t], [0, 1]]`` broadcast over the batch axes of ``R`` and ``t``."""
+    d = r.shape[-1]
+    batch = np.broadcast_shapes(r.shape[:-2], t.shape[:-1])
+    out = np.zeros(batch + (d + 1, d + 1))
+    out[..., :d, :d] = r
+    out[..., :d, d] = t
+    out[..., d, d] = 1.0
+    return out
+
+
+def split(m: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(R, t)`` views of a homogeneous matrix."""
+    d = m.shape[-1] - 1
+    return m[..., :d, :d], m[..., :d, d]
+
+
+def h_compose(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``[[Ra Rb, Ra tb + ta], [0, 1]]``."""
+    ra, ta = split(a)
+    rb, tb = split(b)
+    return assemble(ra @ rb, rotate_vectors(ra, tb) + ta)
+
+
+def h_inverse(m: FloatArray) -> FloatArray:
+    """``[[Rᵀ, −Rᵀt], [0, 1]]``."""
+    r, t = split(m)
+    rt = np.swapaxes(r, -1, -2)
+    return assemble(rt, -rotate_vectors(rt, t))
+
+
+def h_act(m: FloatArray, p: FloatArray) -> FloatArray:
+    """``R p + t``."""
+    r, t = split(m)
+    return rotate_vectors(r, p) + t
+
+
+def rotation_error(r: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(max |RᵀR − I|, det R)`` per batch element."""
+    d = r.shape[-1]
+    gram = np.swapaxes(r, -1, -2) @ r
+    return np.abs(gram - np.eye(d)).max(axis=(-2, -1)), np.linalg.det(r)
+
+
+def check_rotation(r: FloatArray, tol: float, name: str) -> None:
+    """Raise :class:`NotInGroupError` unless every ``R`` is orthonormal within ``tol``
+    with ``det R > 0``, naming the first offending batch index."""
+    err, det = rotation_error(r)
+    for bad, why in ((err > tol, f"not orthonormal (|RᵀR − I| > {tol:g})"), (det <= 0, "a reflection (det R < 0)")):
+        if bad.any():
+            idx = tuple(int(i) for i in np.argwhere(bad)[0]) if bad.ndim else ()
+            raise NotInGroupError(
+                f"{name}: matrix at batch index {idx} is {why}; pass project=True to snap it to the nearest rotation"
+            )
+
+
+def check_last_row(m: FloatArray, tol: float, name: str) -> None:
+    d = m.shape[-1] - 1
+    target = np.zeros(d + 1)
+    target[d] = 1.0
+    bad = np.abs(m[..., d, :] - target).max(axis=-1) > tol
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0]) if bad.ndim else ()
+        raise NotInGroupError(f"{name}: homogeneous matrix at batch index {idx} has last row != [0, ..., 0, 1]")
+
+
+def project_rotation(m: FloatArray) -> FloatArray:
+    """Nearest rotation in Frobenius norm: ``U diag(1, …, 1, det(UVᵀ)) Vᵀ`` of ``M = U S Vᵀ``."""
+    u, _, vt = np.linalg.svd(m)
+    d = np.sign(np.linalg.det(u @ vt))
+    d = np.where(d == 0, 1.0, d)
+    u = u.copy()
+    u[..., :, -1] *= d[..., None]
+    return u @ vt
+
+
+def skew2(v: FloatArray) -> FloatArray:
+    """``J v`` with ``J = [[0, −1], [1, 0]]`` (rotation of a plane vector by +90°)."""
+    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+
+
+def rotation2(theta: FloatArray) -> FloatArray:
+    """``[[cos θ, −sin θ], [sin θ, cos θ]]``."""
+    c, s = np.cos(theta), np.sin(theta)
+    out = np.empty(theta.shape + (2, 2))
+    out[..., 0, 0], out[..., 0, 1] = c, -s
+    out[..., 1, 0], out[..., 1, 1] = s, c
+    return out
+
+
+def angle2(r: FloatArray) -> FloatArray:
+    """Angle ``∈ (−π, π]`` of a planar rotation."""
+    return np.arctan2(r[..., 1, 0], r[..., 0, 0])

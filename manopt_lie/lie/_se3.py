@@ -1,0 +1,94 @@
+"""SE(3) kernels on arrays: homogeneous ``(..., 4, 4)``, tangents ``(ρ, θ)`` as ``(..., 6)``.
+
+Formulas: Solà et al. (arXiv:1812.01537) eqs. 169–180; Barfoot §7.1.5 for ``Q``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _matrix, _series, _so3
+from ._checks import FloatArray
+
+
+def hat(tau: FloatArray) -> FloatArray:
+    """``[[θ^, ρ], [0, 0]]`` (eq. 169)."""
+    out = np.zeros(tau.shape[:-1] + (4, 4))
+    out[..., :3, :3] = _so3.hat(tau[..., 3:])
+    out[..., :3, 3] = tau[..., :3]
+    return out
+
+
+def vee(m: FloatArray) -> FloatArray:
+    return np.concatenate([m[..., :3, 3], _so3.vee(m[..., :3, :3])], axis=-1)
+
+
+def exp(tau: FloatArray) -> FloatArray:
+    """``[[Exp(θ), Jl(θ) ρ], [0, 1]]`` (eq. 172)."""
+    rho, theta = tau[..., :3], tau[..., 3:]
+    return _matrix.assemble(_so3.exp(theta), _so3.jl_apply(theta, rho))
+
+
+def log(m: FloatArray) -> FloatArray:
+    """``(Jl(θ)⁻¹ t, θ)`` with ``θ = Log(R)`` (eq. 173)."""
+    r, t = _matrix.split(m)
+    theta = _so3.log(r)
+    return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
+
+
+def adjoint(m: FloatArray) -> FloatArray:
+    """``[[R, [t]× R], [0, R]]`` (eq. 178)."""
+    r, t = _matrix.split(m)
+    out = np.zeros(m.shape[:-2] + (6, 6))
+    out[..., :3, :3] = r
+    out[..., 3:, 3:] = r
+    out[..., :3, 3:] = _so3.hat(t) @ r
+    return out
+
+
+def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
+    """Barfoot's ``Q(ρ, θ)``, the top-right block of ``Jl(ρ, θ)`` (Solà eq. 180)::
+
+        Q = ½ρ^ + c₁(θ^ρ^ + ρ^θ^ + θ^ρ^θ^) + c₂(θ^²ρ^ + ρ^θ^² − 3θ^ρ^θ^)
+              + c₃(θ^ρ^θ^² + θ^²ρ^θ^)
+
+    with ``c₁ = (θ − sin θ)/θ³``, ``c₂ = (θ² + 2cos θ − 2)/(2θ⁴)``,
+    ``c₃ = (2θ − 3 sin θ + θ cos θ)/(2θ⁵)``.
+    """
+    angle = np.sqrt(np.einsum("...i,...i->...", theta, theta))
+    c1 = _series.sinc3(angle)[..., None, None]
+    c2 = _series.q_coef2(angle)[..., None, None]
+    c3 = _series.q_coef3(angle)[..., None, None]
+    p, t = _so3.hat(rho), _so3.hat(theta)
+    tp, pt = t @ p, p @ t
+    tpt = tp @ t
+    return 0.5 * p + c1 * (tp + pt + tpt) + c2 * (t @ tp + pt @ t - 3.0 * tpt) + c3 * (tpt @ t + t @ tpt)
+
+
+def jr(tau: FloatArray) -> FloatArray:
+    """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179)."""
+    rho, theta = tau[..., :3], tau[..., 3:]
+    j = _so3.jr(theta)
+    out = np.zeros(tau.shape[:-1] + (6, 6))
+    out[..., :3, :3] = j
+    out[..., 3:, 3:] = j
+    out[..., :3, 3:] = q_matrix(-rho, -theta)
+    return out
+
+
+def jr_inv(tau: FloatArray) -> FloatArray:
+    """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``."""
+    rho, theta = tau[..., :3], tau[..., 3:]
+    ji = _so3.jr_inv(theta)
+    out = np.zeros(tau.shape[:-1] + (6, 6))
+    out[..., :3, :3] = ji
+    out[..., 3:, 3:] = ji
+    out[..., :3, 3:] = -ji @ q_matrix(-rho, -theta) @ ji
+    return out
+
+
+def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``D(T·p)/DT = [R, −R[p]×]``, ``D(T·p)/Dp = R`` (eq. 181)."""
+    r, _ = _matrix.split(m)
+    j_x = np.concatenate(np.broadcast_arrays(r, _so3.act_jac_rotation(r, p)), axis=-1)
+    return j_x, r

@@ -1,0 +1,166 @@
+"""SO(3) kernels on arrays: rotation matrices ``(..., 3, 3)``, rotation vectors ``(..., 3)``.
+
+Formulas: Solà, Deray, Atchuthan, "A micro Lie theory" (arXiv:1812.01537),
+Appendix B; Barfoot, "State Estimation for Robotics", §7.1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _series
+from ._checks import FloatArray
+
+
+def hat(w: FloatArray) -> FloatArray:
+    """``[w]×`` (eq. 141)."""
+    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    out = np.zeros(w.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -z, y
+    out[..., 1, 0], out[..., 1, 2] = z, -x
+    out[..., 2, 0], out[..., 2, 1] = -y, x
+    return out
+
+
+def vee(m: FloatArray) -> FloatArray:
+    """Inverse of :func:`hat` on the skew part ``(M − Mᵀ)/2``."""
+    return 0.5 * np.stack(
+        [m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
+        axis=-1,
+    )
+
+
+def _norm(w: FloatArray) -> FloatArray:
+    return np.sqrt(np.einsum("...i,...i->...", w, w))
+
+
+def exp(w: FloatArray) -> FloatArray:
+    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (eq. 143)."""
+    theta = _norm(w)
+    a = _series.sinc(theta)
+    b = _series.cosc(theta)
+    c = np.cos(theta)
+    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    bxy, bxz, byz = bx * y, bx * z, by * z
+    out = np.empty(w.shape[:-1] + (3, 3))
+    out[..., 0, 0] = c + bx * x
+    out[..., 0, 1] = bxy - az
+    out[..., 0, 2] = bxz + ay
+    out[..., 1, 0] = bxy + az
+    out[..., 1, 1] = c + by * y
+    out[..., 1, 2] = byz - ax
+    out[..., 2, 0] = bxz - ay
+    out[..., 2, 1] = byz + ax
+    out[..., 2, 2] = c + bz * z
+    return out
+
+
+def to_quaternion(r: FloatArray) -> FloatArray:
+    """Unit quaternion ``(x, y, z, w)`` with ``w ≥ 0`` (Shepperd's method).
+
+    Of the four proportional candidate columns of the symmetric matrix built from
+    ``R``, the one with the largest diagonal entry is normalized, so the result
+    is accurate to machine precision for every rotation, including angle π.
+    """
+    r00, r01, r02 = r[..., 0, 0], r[..., 0, 1], r[..., 0, 2]
+    r10, r11, r12 = r[..., 1, 0], r[..., 1, 1], r[..., 1, 2]
+    r20, r21, r22 = r[..., 2, 0], r[..., 2, 1], r[..., 2, 2]
+    diag = np.stack([r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22], -1)
+    k = np.argmax(diag, axis=-1)
+    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
+    big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
+    # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
+    q = np.stack(
+        [
+            np.choose(k, [big, s01, s02, d21]),
+            np.choose(k, [s01, big, s12, d02]),
+            np.choose(k, [s02, s12, big, d10]),
+            np.choose(k, [d21, d02, d10, big]),
+        ],
+        axis=-1,
+    )
+    q /= _norm(q)[..., None]
+    q *= np.where(q[..., 3:] < 0.0, -1.0, 1.0)
+    return q
+
+
+def from_quaternion(q: FloatArray) -> FloatArray:
+    """Rotation matrix of a unit quaternion ``(x, y, z, w)``."""
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    out = np.empty(q.shape[:-1] + (3, 3))
+    out[..., 0, 0] = 1.0 - 2.0 * (yy + zz)
+    out[..., 0, 1] = 2.0 * (xy - wz)
+    out[..., 0, 2] = 2.0 * (xz + wy)
+    out[..., 1, 0] = 2.0 * (xy + wz)
+    out[..., 1, 1] = 1.0 - 2.0 * (xx + zz)
+    out[..., 1, 2] = 2.0 * (yz - wx)
+    out[..., 2, 0] = 2.0 * (xz - wy)
+    out[..., 2, 1] = 2.0 * (yz + wx)
+    out[..., 2, 2] = 1.0 - 2.0 * (xx + yy)
+    return out
+
+
+def quaternion_log(q: FloatArray) -> FloatArray:
+    """``θu`` of a unit quaternion with ``w ≥ 0``: ``θ = 2 atan2(|v|, w) ∈ [0, π]``."""
+    v, w = q[..., :3], q[..., 3]
+    s = _norm(v)
+    # θ/|v| → 2/w (1 − |v|²/(3w²)) as |v| → 0, where w → 1.
+    small = s < 1e-8
+    ratio = np.where(
+        small, 2.0 / w * (1.0 - s * s / (3.0 * w * w)), 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s)
+    )
+    return ratio[..., None] * v
+
+
+def log(r: FloatArray) -> FloatArray:
+    """``Log(R) = θu`` with ``θ ∈ [0, π]`` (eq. 144), through the quaternion."""
+    return quaternion_log(to_quaternion(r))
+
+
+def _cross_terms(w: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(w × v, w × (w × v))``, i.e. ``[w]× v`` and ``[w]×² v``."""
+    wv = np.cross(w, v)
+    return wv, np.cross(w, wv)
+
+
+def jl_apply(w: FloatArray, v: FloatArray) -> FloatArray:
+    """``Jl(w) v = v + (1 − cos θ)/θ² w×v + (θ − sin θ)/θ³ w×(w×v)`` (eq. 145)."""
+    theta = _norm(w)
+    wv, wwv = _cross_terms(w, v)
+    return v + _series.cosc(theta)[..., None] * wv + _series.sinc3(theta)[..., None] * wwv
+
+
+def jl_inv_apply(w: FloatArray, v: FloatArray) -> FloatArray:
+    """``Jl(w)⁻¹ v = v − ½ w×v + (1/θ² − (1+cos θ)/(2θ sin θ)) w×(w×v)`` (eq. 146)."""
+    theta = _norm(w)
+    wv, wwv = _cross_terms(w, v)
+    return v - 0.5 * wv + _series.jinv_coef(theta)[..., None] * wwv
+
+
+def _i_plus(a: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
+    """``I + a [w]× + b [w]×²`` with ``[w]×² = w wᵀ − |w|² I``."""
+    k = hat(w)
+    k2 = w[..., :, None] * w[..., None, :] - np.einsum("...i,...i->...", w, w)[..., None, None] * np.eye(3)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * k2
+
+
+def jr(w: FloatArray) -> FloatArray:
+    """``Jr(θ) = I − (1 − cos θ)/θ² [θ]× + (θ − sin θ)/θ³ [θ]×²`` (eq. 143)."""
+    theta = _norm(w)
+    return _i_plus(-_series.cosc(theta), _series.sinc3(theta), w)
+
+
+def jr_inv(w: FloatArray) -> FloatArray:
+    """``Jr(θ)⁻¹ = I + ½[θ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [θ]×²`` (eq. 144)."""
+    theta = _norm(w)
+    return _i_plus(np.full_like(theta, 0.5), _series.jinv_coef(theta), w)
+
+
+def act_jac_rotation(r: FloatArray, p: FloatArray) -> FloatArray:
+    """``D(R·p)/DR = −R [p]×`` (eq. 149)."""
+    return -r @ hat(p)

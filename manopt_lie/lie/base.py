@@ -1,0 +1,411 @@
+"""The generic Lie group: the deduced API written once over each group's kernels.
+
+A group subclass supplies the *minimal* kernels on raw arrays (``_exp``,
+``_log``, ``_compose``, ``_inverse``, ``_act``, ``_act_jac``, ``_adjoint``,
+``_jr``, ``_jr_inv``, ``_hat``, ``_vee``, ``_identity``, ``_random``,
+``_validate``, ``_project``); this base derives everything else — ``rplus``,
+``lplus``, ``rminus``, ``lminus``, ``between``, ``jl``, ``jl_inv``, ``dist``,
+``interpolate`` and all Jacobians — from the blocks of CONVENTIONS §4 (Solà et
+al., arXiv:1812.01537, §IV-B and eqs. 71–86).
+
+Jacobians are *right* (local) Jacobians,
+``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ``, except for ``lplus``/``lminus``, whose
+Jacobians are *left* (global frame) ones, ``J = lim (f(τ ⊕ X) ⊖ₗ f(X)) / τ``
+with ``τ ⊕ X = Exp(τ)X`` on inputs and outputs alike. They carry the batch
+axes of the result: shape ``(..., m, n)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, ClassVar, Literal, TypeVar, overload
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..errors import ShapeError
+from . import _matrix
+from ._checks import FloatArray, as_batch, broadcast_batch
+
+G = TypeVar("G", bound="LieGroup")
+Jac = FloatArray
+
+
+def _bcast(j: FloatArray, batch: tuple[int, ...]) -> FloatArray:
+    """``j`` broadcast to ``batch + j.shape[-2:]``, as a writable array."""
+    shape = batch + j.shape[-2:]
+    return j if j.shape == shape else np.array(np.broadcast_to(j, shape))
+
+
+def _eye(n: int, batch: tuple[int, ...]) -> FloatArray:
+    return np.array(np.broadcast_to(np.eye(n), batch + (n, n)))
+
+
+class LieGroup:
+    """A batch of elements of a matrix Lie group, wrapping one read-only array.
+
+    Class attributes
+    ----------------
+    dim : int
+        Dimension of the tangent space (degrees of freedom).
+    storage_shape : tuple of int
+        Trailing shape of the stored array for one element.
+    point_dim : int
+        Dimension of the points the group acts on.
+    """
+
+    __slots__ = ("_data",)
+    dim: ClassVar[int]
+    storage_shape: ClassVar[tuple[int, ...]]
+    point_dim: ClassVar[int]
+    _data: FloatArray
+
+    # ---- construction -------------------------------------------------------------
+
+    def __init__(self, data: ArrayLike) -> None:
+        """Wrap an array of elements, checking shape, finiteness and membership.
+
+        The array is copied. Use :meth:`from_matrix` to choose the tolerance
+        or to project onto the group.
+        """
+        a = self._checked(data, project=False, tol=_matrix.DEFAULT_TOL, name=type(self).__name__)
+        object.__setattr__(self, "_data", a.copy())
+        self._data.flags.writeable = False
+
+    @classmethod
+    def _wrap(cls: type[G], data: FloatArray) -> G:
+        """Wrap a kernel's output without checks or copies (internal)."""
+        out = object.__new__(cls)
+        data.flags.writeable = False
+        object.__setattr__(out, "_data", data)
+        return out
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"{type(self).__name__} elements are immutable")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self)._wrap, (np.array(self._data),))
+
+    @classmethod
+    def _checked(cls, data: ArrayLike, *, project: bool, tol: float, name: str) -> FloatArray:
+        a = as_batch(data, cls.storage_shape, name)
+        return cls._project(a) if project else (cls._validate(a, tol, name) or a)
+
+    @classmethod
+    def from_matrix(cls: type[G], m: ArrayLike, *, project: bool = False, tol: float = _matrix.DEFAULT_TOL) -> G:
+        """Element(s) from matrices ``(..., k, k)`` (``k`` = :meth:`as_matrix` size).
+
+        Parameters
+        ----------
+        m
+            Rotation or homogeneous matrices, any leading batch axes.
+        project
+            Snap each matrix to the nearest group element (rotation block by
+            SVD, ``U diag(1, …, det UVᵀ) Vᵀ``; homogeneous last row reset)
+            instead of validating it.
+        tol
+            Largest accepted entry of ``|RᵀR − I|`` and of the last-row error.
+
+        Raises
+        ------
+        ShapeError, NonFiniteError, NotInGroupError
+        """
+        return cls._wrap(cls._checked(cls._matrix_to_data(m), project=project, tol=tol, name="from_matrix").copy())
+
+    @classmethod
+    def _matrix_to_data(cls, m: ArrayLike) -> ArrayLike:
+        return m
+
+    def as_matrix(self) -> FloatArray:
+        """The matrix form, shape ``(..., k, k)`` (a read-only view where stored as such)."""
+        return self._data
+
+    @property
+    def data(self) -> FloatArray:
+        """The stored array, shape ``batch_shape + storage_shape`` (read-only)."""
+        return self._data
+
+    @classmethod
+    def identity(cls: type[G], batch_shape: tuple[int, ...] = ()) -> G:
+        """The identity element, broadcast to ``batch_shape``."""
+        return cls._wrap(cls._identity(tuple(batch_shape)))
+
+    @classmethod
+    def random(cls: type[G], rng: np.random.Generator | int | None, batch_shape: tuple[int, ...] = ()) -> G:
+        """Random elements: Haar-uniform rotations; translations ``~ N(0, I)``.
+
+        ``rng`` is a ``numpy.random.Generator`` or a seed (never the global RNG).
+        """
+        return cls._wrap(cls._random(np.random.default_rng(rng), tuple(batch_shape)))
+
+    # ---- batch handling -----------------------------------------------------------
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return self._data.shape[: self._data.ndim - len(self.storage_shape)]
+
+    def __len__(self) -> int:
+        if not self.batch_shape:
+            raise TypeError(f"len() of an unbatched {type(self).__name__} element")
+        return self.batch_shape[0]
+
+    def __getitem__(self: G, index: Any) -> G:
+        """Index the batch axes only, as NumPy would index an array of that shape."""
+        idx = index if isinstance(index, tuple) else (index,)
+        np.broadcast_to(np.empty(()), self.batch_shape)[idx]  # IndexError past the batch axes
+        tail = (slice(None),) * len(self.storage_shape) if any(i is Ellipsis for i in idx) else (Ellipsis,)
+        return self._wrap(self._data[idx + tail])
+
+    def reshape(self: G, batch_shape: tuple[int, ...]) -> G:
+        return self._wrap(self._data.reshape(tuple(batch_shape) + self.storage_shape))
+
+    def broadcast_to(self: G, batch_shape: tuple[int, ...]) -> G:
+        return self._wrap(np.broadcast_to(self._data, tuple(batch_shape) + self.storage_shape))
+
+    @classmethod
+    def _batch_axis(cls, axis: int) -> int:
+        return axis - len(cls.storage_shape) if axis < 0 else axis
+
+    @classmethod
+    def stack(cls: type[G], elements: Sequence[G], axis: int = 0) -> G:
+        """Stack elements of equal batch shape along a new batch axis."""
+        return cls._wrap(np.stack([cls._same(e)._data for e in elements], axis=cls._batch_axis(axis)))
+
+    @classmethod
+    def concatenate(cls: type[G], elements: Sequence[G], axis: int = 0) -> G:
+        """Join elements along an existing batch axis."""
+        if any(not e.batch_shape for e in elements):
+            raise ShapeError("concatenate: elements need at least one batch axis")
+        return cls._wrap(np.concatenate([cls._same(e)._data for e in elements], axis=cls._batch_axis(axis)))
+
+    @classmethod
+    def _same(cls: type[G], other: Any) -> G:
+        if type(other) is not cls:
+            raise TypeError(f"expected a {cls.__name__} element, got {type(other).__name__}")
+        return other
+
+    def __repr__(self) -> str:
+        if self._data.size <= 16:
+            body = np.array2string(self._data, precision=4, separator=", ", prefix="    ")
+            return f"{type(self).__name__}(batch_shape={self.batch_shape},\n    {body})"
+        return f"{type(self).__name__}(batch_shape={self.batch_shape})"
+
+    # ---- Lie algebra --------------------------------------------------------------
+
+    @classmethod
+    def _tangent(cls, tau: ArrayLike, name: str = "tau") -> FloatArray:
+        return as_batch(tau, (cls.dim,), name)
+
+    @classmethod
+    def hat(cls, tau: ArrayLike) -> FloatArray:
+        """``τ^``: tangent coordinates ``(..., dim)`` to the Lie algebra matrix."""
+        return cls._hat(cls._tangent(tau))
+
+    @classmethod
+    def vee(cls, m: ArrayLike) -> FloatArray:
+        """``M^∨``: Lie algebra matrices to tangent coordinates (inverse of :meth:`hat`)."""
+        return cls._vee(as_batch(m, cls._hat(np.zeros(cls.dim)).shape, "m"))
+
+    @classmethod
+    def jr(cls, tau: ArrayLike) -> FloatArray:
+        """Right Jacobian: ``Exp(τ + δ) ≈ Exp(τ) Exp(Jr(τ) δ)`` (eq. 67), ``(..., dim, dim)``."""
+        return cls._jr(cls._tangent(tau))
+
+    @classmethod
+    def jl(cls, tau: ArrayLike) -> FloatArray:
+        """Left Jacobian: ``Exp(τ + δ) ≈ Exp(Jl(τ) δ) Exp(τ)``; ``Jl(τ) = Jr(−τ)`` (eq. 72)."""
+        return cls._jr(-cls._tangent(tau))
+
+    @classmethod
+    def jr_inv(cls, tau: ArrayLike) -> FloatArray:
+        """``Jr(τ)⁻¹`` in closed form."""
+        return cls._jr_inv(cls._tangent(tau))
+
+    @classmethod
+    def jl_inv(cls, tau: ArrayLike) -> FloatArray:
+        """``Jl(τ)⁻¹ = Jr(−τ)⁻¹``."""
+        return cls._jr_inv(-cls._tangent(tau))
+
+    # ---- minimal API --------------------------------------------------------------
+
+    @overload
+    @classmethod
+    def exp(cls: type[G], tau: ArrayLike, jac: Literal[False] = ...) -> G: ...
+    @overload
+    @classmethod
+    def exp(cls: type[G], tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac]: ...
+    @classmethod
+    def exp(cls: type[G], tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac]:
+        """``Exp(τ) = exp(τ^)``, batch shape ``tau.shape[:-1]``; Jacobian ``Jr(τ)``."""
+        t = cls._tangent(tau)
+        x = cls._wrap(cls._exp(t))
+        return (x, cls._jr(t)) if jac else x
+
+    @overload
+    def log(self, jac: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def log(self, jac: Literal[True]) -> tuple[FloatArray, Jac]: ...
+    def log(self, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac]:
+        """``Log(X)``, shape ``(..., dim)``; Jacobian ``Jr(Log X)⁻¹`` (eq. 79)."""
+        tau = self._log(self._data)
+        return (tau, self._jr_inv(tau)) if jac else tau
+
+    @overload
+    def compose(self: G, other: G, jac: Literal[False] = ...) -> G: ...
+    @overload
+    def compose(self: G, other: G, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
+    def compose(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
+        """``X·Y``; Jacobians ``Ad_Y⁻¹`` wrt ``X`` and ``I`` wrt ``Y`` (eqs. 73–74)."""
+        b = self._same(other)._data
+        z = self._wrap(self._compose(self._data, b))
+        if not jac:
+            return z
+        return z, _bcast(self._adjoint(self._inverse(b)), z.batch_shape), _eye(self.dim, z.batch_shape)
+
+    def __matmul__(self: G, other: G) -> G:
+        return self.compose(other)
+
+    @overload
+    def inverse(self: G, jac: Literal[False] = ...) -> G: ...
+    @overload
+    def inverse(self: G, jac: Literal[True]) -> tuple[G, Jac]: ...
+    def inverse(self: G, jac: bool = False) -> G | tuple[G, Jac]:
+        """``X⁻¹``; Jacobian ``−Ad_X`` (eq. 72)."""
+        xi = self._wrap(self._inverse(self._data))
+        return (xi, -self._adjoint(self._data)) if jac else xi
+
+    @overload
+    def act(self, p: ArrayLike, jac: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def act(self, p: ArrayLike, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
+    def act(self, p: ArrayLike, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
+        """Group action on points ``p`` of shape ``(..., point_dim)``; Jacobians wrt ``X`` and ``p``."""
+        pts = as_batch(p, (self.point_dim,), "p")
+        batch = broadcast_batch(self.batch_shape, pts.shape[:-1])
+        q = self._act(self._data, pts)
+        if not jac:
+            return q
+        j_x, j_p = self._act_jac(self._data, pts)
+        return q, _bcast(j_x, batch), _bcast(j_p, batch)
+
+    def adjoint(self) -> FloatArray:
+        """``Ad_X``, with ``Ad_X τ = (X τ^ X⁻¹)^∨`` (eq. 29), shape ``(..., dim, dim)``."""
+        return self._adjoint(self._data)
+
+    # ---- deduced API --------------------------------------------------------------
+
+    @overload
+    def rplus(self: G, tau: ArrayLike, jac: Literal[False] = ...) -> G: ...
+    @overload
+    def rplus(self: G, tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
+    def rplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
+        """``X ⊕ τ = X·Exp(τ)``; Jacobians ``Ad_{Exp τ}⁻¹`` wrt ``X``, ``Jr(τ)`` wrt ``τ`` (eqs. 81–82)."""
+        t = self._tangent(tau)
+        e = self._exp(t)
+        y = self._wrap(self._compose(self._data, e))
+        if not jac:
+            return y
+        return y, _bcast(self._adjoint(self._inverse(e)), y.batch_shape), _bcast(self._jr(t), y.batch_shape)
+
+    @overload
+    def rminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def rminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
+    def rminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
+        """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
+        ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 83–84)."""
+        x = self._same(other)._data
+        tau = self._log(self._compose(self._inverse(x), self._data))
+        if not jac:
+            return tau
+        return tau, self._jr_inv(tau), -self._jr_inv(-tau)
+
+    @overload
+    def lplus(self: G, tau: ArrayLike, jac: Literal[False] = ...) -> G: ...
+    @overload
+    def lplus(self: G, tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
+    def lplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
+        """``τ ⊕ X = Exp(τ)·X`` (eq. 25). **Left-frame** Jacobians: ``Ad_{Exp τ}``
+        wrt ``X`` and ``Jl(τ)`` wrt ``τ``, i.e. ``Exp(τ+δ)·Exp(ε)X ≈ Exp(Jl δ + Ad ε)·Y``.
+
+        The right Jacobians follow as ``J_X = I`` and ``J_τ = Ad_Y⁻¹ Jl(τ)``.
+        """
+        t = self._tangent(tau)
+        e = self._exp(t)
+        y = self._wrap(self._compose(e, self._data))
+        if not jac:
+            return y
+        return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(self._jr(-t), y.batch_shape)
+
+    @overload
+    def lminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
+    @overload
+    def lminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
+    def lminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
+        """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other`` (eq. 28). **Left-frame**
+        Jacobians: ``Jl(τ)⁻¹`` wrt ``Y`` and ``−Jr(τ)⁻¹`` wrt ``X``."""
+        x = self._same(other)._data
+        tau = self._log(self._compose(self._data, self._inverse(x)))
+        if not jac:
+            return tau
+        return tau, self._jr_inv(-tau), -self._jr_inv(tau)
+
+    @overload
+    def between(self: G, other: G, jac: Literal[False] = ...) -> G: ...
+    @overload
+    def between(self: G, other: G, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
+    def between(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
+        """``X⁻¹·Y`` for ``X = self``, ``Y = other``; Jacobians ``−Ad_{X⁻¹Y}⁻¹`` wrt
+        ``X`` and ``I`` wrt ``Y``."""
+        z = self._wrap(self._compose(self._inverse(self._data), self._same(other)._data))
+        if not jac:
+            return z
+        j_x = -self._adjoint(self._inverse(z._data))
+        return z, j_x, _eye(self.dim, z.batch_shape)
+
+    def dist(self, other: LieGroup) -> FloatArray:
+        """Geodesic distance ``|Y ⊖ X|`` (Euclidean norm of the tangent coordinates)."""
+        return np.linalg.norm(other.rminus(self), axis=-1)
+
+    def chordal_dist(self, other: LieGroup) -> FloatArray:
+        """Chordal distance ``‖X − Y‖_F`` of the matrix forms."""
+        d = self.as_matrix() - self._same(other).as_matrix()
+        return np.sqrt(np.einsum("...ij,...ij->...", d, d))
+
+    def interpolate(self: G, other: G, s: ArrayLike) -> G:
+        """``X ⊕ s·(Y ⊖ X)``: ``s = 0`` gives ``X``, ``s = 1`` gives ``Y``; ``s`` broadcasts
+        against the batch axes."""
+        return self.rplus(np.asarray(s, dtype=np.float64)[..., None] * other.rminus(self))
+
+    # ---- kernels every group supplies ---------------------------------------------
+
+    @staticmethod
+    def _exp(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _log(data: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _compose(a: FloatArray, b: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _inverse(a: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _act(a: FloatArray, p: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _act_jac(a: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]: raise NotImplementedError
+    @staticmethod
+    def _adjoint(a: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _jr(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _jr_inv(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _hat(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    @staticmethod
+    def _vee(m: FloatArray) -> FloatArray: raise NotImplementedError
+    @classmethod
+    def _identity(cls, batch: tuple[int, ...]) -> FloatArray: raise NotImplementedError
+    @classmethod
+    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray: raise NotImplementedError
+    @classmethod
+    def _validate(cls, a: FloatArray, tol: float, name: str) -> None: raise NotImplementedError
+    @classmethod
+    def _project(cls, a: FloatArray) -> FloatArray: raise NotImplementedError
