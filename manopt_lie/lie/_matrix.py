@@ -124,3 +124,9 @@ def rotation2(theta: FloatArray) -> FloatArray:
 def angle2(r: FloatArray) -> FloatArray:
     """Angle ``∈ (−π, π]`` of a planar rotation."""
     return np.arctan2(r[..., 1, 0], r[..., 0, 0])
+
+
+def hconcat(*blocks: FloatArray) -> FloatArray:
+    """Concatenate matrices ``(..., m, nᵢ)`` along columns, broadcasting batch axes only."""
+    batch = np.broadcast_shapes(*(b.shape[:-2] for b in blocks))
+    return np.concatenate([np.broadcast_to(b, batch + b.shape[-2:]) for b in blocks], axis=-1)

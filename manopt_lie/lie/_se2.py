@@ -93,4 +93,4 @@ def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``D(T·p)/DT = [R, R J p]`` with ``J = [[0, −1], [1, 0]]``, ``D(T·p)/Dp = R``."""
     r = m[..., :2, :2]
     rjp = _matrix.rotate_vectors(r, _matrix.skew2(p))
-    return np.concatenate(np.broadcast_arrays(r, rjp[..., None]), axis=-1), r
+    return _matrix.hconcat(r, rjp[..., None]), r

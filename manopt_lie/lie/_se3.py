@@ -90,5 +90,5 @@ def jr_inv(tau: FloatArray) -> FloatArray:
 def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``D(T·p)/DT = [R, −R[p]×]``, ``D(T·p)/Dp = R`` (eq. 181)."""
     r, _ = _matrix.split(m)
-    j_x = np.concatenate(np.broadcast_arrays(r, _so3.act_jac_rotation(r, p)), axis=-1)
+    j_x = _matrix.hconcat(r, _so3.act_jac_rotation(r, p))
     return j_x, r

@@ -1,0 +1,102 @@
+"""Samplers and central finite differences shared by the Lie-group tests."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn
+
+GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Rn(3)]
+BATCH_SHAPES: list[tuple[int, ...]] = [(), (1,), (3, 1, 2)]
+REGIMES = ["identity", "tiny", "random", "uniform", "near_pi"]
+
+# Slice of the rotation coordinates inside each group's tangent vector.
+ROTATION_PART = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6)}
+
+
+def group_id(g: type[LieGroup]) -> str:
+    return g.__name__
+
+
+def tangent(g: type[LieGroup], regime: str, batch: tuple[int, ...], rng: np.random.Generator, pi_gap: float = 1e-9):
+    """Tangent vectors of a sampling regime; ``near_pi`` puts the rotation angle in
+    ``[π − pi_gap, π − pi_gap/2]`` (for Rⁿ: vectors of norm ~30, Sophus's hard case)."""
+    shape = batch + (g.dim,)
+    if regime == "identity":
+        return np.zeros(shape)
+    if regime == "tiny":
+        return 1e-8 * rng.standard_normal(shape)
+    tau = rng.standard_normal(shape)
+    if regime in ("random", "uniform"):
+        return tau
+    if g not in ROTATION_PART:
+        return 30.0 * tau / np.linalg.norm(tau, axis=-1, keepdims=True)
+    part = ROTATION_PART[g]
+    rot = tau[..., part]
+    angle = np.pi - pi_gap * rng.uniform(0.5, 1.0, batch + (1,))
+    tau[..., part] = rot / np.linalg.norm(rot, axis=-1, keepdims=True) * angle
+    return tau
+
+
+def element(g: type[LieGroup], regime: str, batch: tuple[int, ...], rng: np.random.Generator, pi_gap: float = 1e-9):
+    if regime == "identity":
+        return g.identity(batch)
+    if regime == "uniform":
+        return g.random(rng, batch)
+    return g.exp(tangent(g, regime, batch, rng, pi_gap))
+
+
+def rotation_angle(g: type[LieGroup], tau: np.ndarray) -> np.ndarray:
+    if g not in ROTATION_PART:
+        return np.zeros(tau.shape[:-1])
+    return np.linalg.norm(tau[..., ROTATION_PART[g]], axis=-1)
+
+
+def numerical_jacobian(
+    f: Callable[..., Any], args: list[Any], wrt: int, frame: str = "right", h: float = 1e-6
+) -> np.ndarray:
+    """Central-difference Jacobian of ``f(*args)`` wrt ``args[wrt]``, batched.
+
+    Group-valued inputs are perturbed by ``x ⊕ (±h e_k)`` (``frame="left"``:
+    ``(±h e_k) ⊕ x``) and group-valued outputs compared with ``⊖`` of the same
+    frame at ``f(x)``; array inputs and outputs use ``+`` and ``−``.
+    """
+    x = args[wrt]
+    y0 = f(*args)
+    dim = x.dim if isinstance(x, LieGroup) else np.shape(x)[-1]
+    cols = []
+    for k in range(dim):
+        step = np.zeros(dim)
+        step[k] = h
+        outs = []
+        for s in (step, -step):
+            a = list(args)
+            if isinstance(x, LieGroup):
+                a[wrt] = x.rplus(s) if frame == "right" else x.lplus(s)
+            else:
+                a[wrt] = x + s
+            y = f(*a)
+            if isinstance(y, LieGroup):
+                y = y.rminus(y0) if frame == "right" else y.lminus(y0)
+            outs.append(y)
+        cols.append((outs[0] - outs[1]) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+def assert_jacobian(j: np.ndarray, j_num: np.ndarray, tol: float = 1e-6) -> None:
+    """``|J − J_fd| ≤ tol·max(1, |J|)`` entrywise, with matching shapes."""
+    assert j.shape == j_num.shape, (j.shape, j_num.shape)
+    scale = np.maximum(1.0, np.abs(j).max(initial=0.0))
+    err = np.abs(j - j_num).max(initial=0.0)
+    assert err <= tol * scale, f"Jacobian differs from finite differences by {err:.3g}"
+
+
+def assert_same(x: LieGroup, y: LieGroup, tol: float = 1e-12) -> None:
+    """Equal matrix forms, relative to their size."""
+    a, b = x.as_matrix(), y.as_matrix()
+    assert a.shape == b.shape, (a.shape, b.shape)
+    scale = max(1.0, np.abs(a).max(initial=0.0))
+    assert np.abs(a - b).max(initial=0.0) <= tol * scale

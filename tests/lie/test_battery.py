@@ -1,0 +1,194 @@
+"""The generic battery: every group × batch shape × sampling regime (hypothesis-driven seeds)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from .helpers import (
+    BATCH_SHAPES,
+    GROUPS,
+    REGIMES,
+    assert_jacobian,
+    assert_same,
+    element,
+    group_id,
+    numerical_jacobian,
+    rotation_angle,
+    tangent,
+)
+
+seeds = st.integers(0, 2**32 - 1)
+battery = pytest.mark.parametrize("group", GROUPS, ids=group_id)
+shapes = pytest.mark.parametrize("batch", BATCH_SHAPES, ids=str)
+regimes = pytest.mark.parametrize("regime", REGIMES)
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_group_axioms(group, batch, regime, seed):
+    rng = np.random.default_rng(seed)
+    x, y, z = (element(group, regime, batch, rng) for _ in range(3))
+    e = group.identity(batch)
+    assert_same((x @ y) @ z, x @ (y @ z))
+    assert_same(x @ e, x)
+    assert_same(e @ x, x)
+    assert_same(x @ x.inverse(), e)
+    assert_same(x.inverse() @ x, e)
+    assert_same(x.between(y), x.inverse() @ y)
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_exp_log_round_trips(group, batch, regime, seed):
+    rng = np.random.default_rng(seed)
+    x = element(group, regime, batch, rng)
+    assert_same(group.exp(x.log()), x)
+    tau = tangent(group, regime, batch, rng)
+    back = group.exp(tau).log()
+    inside = rotation_angle(group, tau) < np.pi
+    scale = np.maximum(1.0, np.abs(tau).max(axis=-1))
+    np.testing.assert_array_less(np.where(inside, np.abs(back - tau).max(axis=-1) / scale, 0.0), 1e-10)
+    # Outside the injectivity radius Log returns an equivalent tangent.
+    assert_same(group.exp(back), group.exp(tau), tol=1e-10)
+    assert np.isfinite(back).all()
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_adjoint_identities(group, batch, regime, seed):
+    rng = np.random.default_rng(seed)
+    x, y = element(group, regime, batch, rng), element(group, regime, batch, rng)
+    np.testing.assert_allclose((x @ y).adjoint(), x.adjoint() @ y.adjoint(), atol=1e-10)
+    # Ad_X τ = (X τ^ X⁻¹)^∨
+    tau = rng.standard_normal(batch + (group.dim,))
+    conj = x.as_matrix() @ group.hat(tau) @ x.inverse().as_matrix()
+    np.testing.assert_allclose(
+        np.einsum("...ij,...j->...i", x.adjoint(), tau), group.vee(conj), atol=1e-10 * (1 + np.abs(tau).max())
+    )
+    np.testing.assert_allclose(x.inverse().adjoint(), np.linalg.inv(x.adjoint()), atol=1e-9)
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_jacobian_identities(group, batch, regime, seed):
+    rng = np.random.default_rng(seed)
+    tau = tangent(group, regime, batch, rng)
+    jr, jl = group.jr(tau), group.jl(tau)
+    eye = np.eye(group.dim)
+    np.testing.assert_allclose(jl, group.jr(-tau), atol=1e-14)
+    # Ad_{Exp τ} = Jl(τ) Jr(τ)⁻¹, i.e. Jl = Ad·Jr
+    np.testing.assert_allclose(group.exp(tau).adjoint() @ jr, jl, atol=1e-10)
+    np.testing.assert_allclose(group.jr_inv(tau) @ jr, np.broadcast_to(eye, jr.shape), atol=1e-9)
+    np.testing.assert_allclose(group.jl_inv(tau) @ jl, np.broadcast_to(eye, jl.shape), atol=1e-9)
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_jacobians_of_elements_vs_finite_differences(group, batch, regime, seed):
+    """exp, compose, inverse, act, rplus, between: right Jacobians; lplus: left ones."""
+    rng = np.random.default_rng(seed)
+    x, y = element(group, regime, batch, rng), element(group, regime, batch, rng)
+    tau = tangent(group, regime, batch, rng)
+    p = rng.standard_normal(batch + (group.point_dim,))
+
+    _, j = group.exp(tau, jac=True)
+    assert_jacobian(j, numerical_jacobian(group.exp, [tau], 0))
+
+    _, j_x, j_y = x.compose(y, jac=True)
+    assert_jacobian(j_x, numerical_jacobian(lambda a, b: a @ b, [x, y], 0))
+    assert_jacobian(j_y, numerical_jacobian(lambda a, b: a @ b, [x, y], 1))
+
+    _, j = x.inverse(jac=True)
+    assert_jacobian(j, numerical_jacobian(lambda a: a.inverse(), [x], 0))
+
+    _, j_x, j_p = x.act(p, jac=True)
+    assert_jacobian(j_x, numerical_jacobian(lambda a, q: a.act(q), [x, p], 0))
+    assert_jacobian(j_p, numerical_jacobian(lambda a, q: a.act(q), [x, p], 1))
+
+    _, j_x, j_t = x.rplus(tau, jac=True)
+    assert_jacobian(j_x, numerical_jacobian(lambda a, t: a.rplus(t), [x, tau], 0))
+    assert_jacobian(j_t, numerical_jacobian(lambda a, t: a.rplus(t), [x, tau], 1))
+
+    _, j_x, j_y = x.between(y, jac=True)
+    assert_jacobian(j_x, numerical_jacobian(lambda a, b: a.between(b), [x, y], 0))
+    assert_jacobian(j_y, numerical_jacobian(lambda a, b: a.between(b), [x, y], 1))
+
+    _, j_x, j_t = x.lplus(tau, jac=True)
+    assert_jacobian(j_x, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 0, frame="left"))
+    assert_jacobian(j_t, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 1, frame="left"))
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_jacobians_of_tangents_vs_finite_differences(group, batch, regime, seed):
+    """log, rminus (right), lminus (left). Log is discontinuous at angle π, so the
+    near-π regime keeps a gap of 1e-4 > the finite-difference step."""
+    rng = np.random.default_rng(seed)
+    x = element(group, regime, batch, rng, pi_gap=1e-4)
+    _, j = x.log(jac=True)
+    assert_jacobian(j, numerical_jacobian(lambda a: a.log(), [x], 0))
+
+    # Y = X ⊕ τ with τ inside the injectivity radius, so Y ⊖ X = τ is smooth.
+    tau = tangent(group, regime, batch, rng, pi_gap=1e-4)
+    y = x.rplus(tau)
+    _, j_y, j_x = y.rminus(x, jac=True)
+    assert_jacobian(j_y, numerical_jacobian(lambda b, a: b.rminus(a), [y, x], 0))
+    assert_jacobian(j_x, numerical_jacobian(lambda b, a: b.rminus(a), [y, x], 1))
+
+    y = x.lplus(tau)
+    _, j_y, j_x = y.lminus(x, jac=True)
+    assert_jacobian(j_y, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 0, frame="left"))
+    assert_jacobian(j_x, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 1, frame="left"))
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_plus_minus_consistency(group, batch, regime, seed):
+    rng = np.random.default_rng(seed)
+    x = element(group, regime, batch, rng)
+    tau = tangent(group, regime, batch, rng, pi_gap=1e-6)
+    tau_in = np.where(rotation_angle(group, tau)[..., None] < np.pi, tau, 0.0)
+    np.testing.assert_allclose(x.rplus(tau_in).rminus(x), tau_in, atol=1e-9)
+    np.testing.assert_allclose(x.lplus(tau_in).lminus(x), tau_in, atol=1e-9)
+    # τ ⊕ X = X ⊕ (Ad_X⁻¹ τ)
+    local = np.einsum("...ij,...j->...i", np.linalg.inv(x.adjoint()), tau)
+    assert_same(x.lplus(tau), x.rplus(local), tol=1e-9)
+    y = element(group, regime, batch, rng)
+    np.testing.assert_allclose(x.dist(y), y.dist(x), atol=1e-9)
+    assert_same(x.interpolate(y, 0.0), x)
+    assert_same(x.interpolate(y, 1.0), y, tol=1e-9)
+
+
+@battery
+@given(seed=seeds)
+def test_composition_drift_over_1000_products(group, seed):
+    """``Exp(τ)¹⁰⁰⁰ = Exp(1000 τ)`` (a one-parameter subgroup) and stays in the group."""
+    rng = np.random.default_rng(seed)
+    tau = 0.01 * rng.standard_normal(group.dim)
+    step = group.exp(tau)
+    x = group.identity()
+    for _ in range(1000):
+        x = x @ step
+    assert_same(x, group.exp(1000 * tau), tol=1e-11)
+    m = x.as_matrix()
+    if group.__name__ != "R3":
+        d = group.point_dim
+        r = m[:d, :d]
+        assert np.abs(r.T @ r - np.eye(d)).max() < 1e-12
