@@ -169,14 +169,27 @@ class LieGroup:
     @classmethod
     def stack(cls: type[G], elements: Sequence[G], axis: int = 0) -> G:
         """Stack elements of equal batch shape along a new batch axis."""
-        return cls._wrap(np.stack([cls._same(e)._data for e in elements], axis=cls._batch_axis(axis)))
+        return cls._join(np.stack, elements, axis)
 
     @classmethod
     def concatenate(cls: type[G], elements: Sequence[G], axis: int = 0) -> G:
         """Join elements along an existing batch axis."""
         if any(not e.batch_shape for e in elements):
             raise ShapeError("concatenate: elements need at least one batch axis")
-        return cls._wrap(np.concatenate([cls._same(e)._data for e in elements], axis=cls._batch_axis(axis)))
+        return cls._join(np.concatenate, elements, axis)
+
+    @classmethod
+    def _join(cls: type[G], join: Any, elements: Sequence[G], axis: int) -> G:
+        arrays = [cls._same(e)._data for e in elements]
+        try:
+            return cls._wrap(join(arrays, axis=cls._batch_axis(axis)))
+        except ValueError as err:
+            raise ShapeError(f"{join.__name__}: batch shapes {[e.batch_shape for e in elements]}: {err}") from None
+
+    def _operand(self, other: Any) -> FloatArray:
+        """The array of a second operand: same group, batch shape broadcastable with ours."""
+        broadcast_batch(self.batch_shape, self._same(other).batch_shape)
+        return other._data
 
     @classmethod
     def _same(cls: type[G], other: Any) -> G:
@@ -256,7 +269,7 @@ class LieGroup:
     def compose(self: G, other: G, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
     def compose(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
         """``X·Y``; Jacobians ``Ad_Y⁻¹`` wrt ``X`` and ``I`` wrt ``Y`` (eqs. 73–74)."""
-        b = self._same(other)._data
+        b = self._operand(other)
         z = self._wrap(self._compose(self._data, b))
         if not jac:
             return z
@@ -301,6 +314,7 @@ class LieGroup:
     def rplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
         """``X ⊕ τ = X·Exp(τ)``; Jacobians ``Ad_{Exp τ}⁻¹`` wrt ``X``, ``Jr(τ)`` wrt ``τ`` (eqs. 81–82)."""
         t = self._tangent(tau)
+        broadcast_batch(self.batch_shape, t.shape[:-1])
         e = self._exp(t)
         y = self._wrap(self._compose(self._data, e))
         if not jac:
@@ -314,7 +328,7 @@ class LieGroup:
     def rminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
         """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
         ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 83–84)."""
-        x = self._same(other)._data
+        x = self._operand(other)
         tau = self._log(self._compose(self._inverse(x), self._data))
         if not jac:
             return tau
@@ -331,6 +345,7 @@ class LieGroup:
         The right Jacobians follow as ``J_X = I`` and ``J_τ = Ad_Y⁻¹ Jl(τ)``.
         """
         t = self._tangent(tau)
+        broadcast_batch(self.batch_shape, t.shape[:-1])
         e = self._exp(t)
         y = self._wrap(self._compose(e, self._data))
         if not jac:
@@ -344,7 +359,7 @@ class LieGroup:
     def lminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
         """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other`` (eq. 28). **Left-frame**
         Jacobians: ``Jl(τ)⁻¹`` wrt ``Y`` and ``−Jr(τ)⁻¹`` wrt ``X``."""
-        x = self._same(other)._data
+        x = self._operand(other)
         tau = self._log(self._compose(self._data, self._inverse(x)))
         if not jac:
             return tau
@@ -357,7 +372,7 @@ class LieGroup:
     def between(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
         """``X⁻¹·Y`` for ``X = self``, ``Y = other``; Jacobians ``−Ad_{X⁻¹Y}⁻¹`` wrt
         ``X`` and ``I`` wrt ``Y``."""
-        z = self._wrap(self._compose(self._inverse(self._data), self._same(other)._data))
+        z = self._wrap(self._compose(self._inverse(self._data), self._operand(other)))
         if not jac:
             return z
         j_x = -self._adjoint(self._inverse(z._data))
@@ -369,7 +384,8 @@ class LieGroup:
 
     def chordal_dist(self, other: LieGroup) -> FloatArray:
         """Chordal distance ``‖X − Y‖_F`` of the matrix forms."""
-        d = self.as_matrix() - self._same(other).as_matrix()
+        self._operand(other)
+        d = self.as_matrix() - other.as_matrix()
         return np.sqrt(np.einsum("...ij,...ij->...", d, d))
 
     def interpolate(self: G, other: G, s: ArrayLike) -> G:

@@ -1,0 +1,163 @@
+"""Accuracy at and near the singular angles 0 and π, hand-picked hard cases, SciPy cross-checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from manopt_lie import SE2, SE3, SO2, SO3
+from manopt_lie.lie import _series
+
+from .helpers import GROUPS, ROTATION_PART, assert_same, group_id
+
+# Angles that stress every branch: exact zero, denormal-squared, both sides of the
+# series threshold, π and its neighbours, and values past π (wrapping).
+HARD_ANGLES = np.array(
+    [0.0, 1e-300, 1e-160, 1e-20, 1e-8, 1e-4, 0.3 - 1e-12, 0.3, 0.5, 0.7 + 1e-12, 1.0, np.pi / 2, np.pi - 1e-6, np.pi - 1e-9, np.pi - 1e-12, np.pi,
+     np.pi + 1e-9, 4.0, 2 * np.pi - 1e-3, 30.0]
+)
+
+
+# Exact references: 40 terms of each power series summed in rational arithmetic.
+def _reference(name: str, theta: float) -> float:
+    from fractions import Fraction
+    from math import factorial
+
+    t = Fraction(theta) ** 2
+    terms = {
+        "sinc": lambda j: Fraction((-1) ** j, factorial(2 * j + 1)),
+        "cosc": lambda j: Fraction((-1) ** j, factorial(2 * j + 2)),
+        "sinc3": lambda j: Fraction((-1) ** j, factorial(2 * j + 3)),
+        "q_coef2": lambda j: Fraction((-1) ** j, factorial(2 * j + 4)),
+        "q_coef3": lambda j: Fraction((-1) ** j * (j + 1), factorial(2 * j + 5)),
+    }[name]
+    return float(sum(terms(j) * t**j for j in range(40)))
+
+
+@pytest.mark.parametrize("name", ["sinc", "cosc", "sinc3", "q_coef2", "q_coef3"])
+def test_series_coefficients_match_exact_reference(name):
+    """Exact rational evaluation of the full power series vs both branches."""
+    f = getattr(_series, name)
+    theta = np.concatenate([np.linspace(0.0, 3.0, 61), [0.3, 0.5, 0.7], np.nextafter([0.3, 0.5, 0.7], 0)])
+    ref = np.array([_reference(name, x) for x in theta])
+    np.testing.assert_allclose(f(theta), ref, rtol=1e-13, atol=0)
+
+
+def test_jinv_coefficient():
+    """``θ² g(θ) = 1 − (θ/2)cot(θ/2)``, checked on both sides of the switch and at π."""
+    theta = np.concatenate([np.linspace(1e-3, 6.0, 200), [0.3, np.nextafter(0.3, 0)]])
+    ref = (1.0 - 0.5 * theta / np.tan(0.5 * theta)) / theta**2
+    np.testing.assert_allclose(_series.jinv_coef(theta)[theta > 0.05], ref[theta > 0.05], rtol=1e-12)
+    assert _series.jinv_coef(np.array([np.pi]))[0] == pytest.approx(1 / np.pi**2, rel=1e-15)
+    assert _series.jinv_coef(np.array([0.0]))[0] == 1 / 12
+
+
+@pytest.mark.parametrize("group", GROUPS, ids=group_id)
+def test_no_nan_anywhere(group, rng):
+    """Every operation is finite for rotation angles across the whole domain
+    (the inverse Jacobians up to, not including, their singularity at 2π)."""
+    tau = rng.standard_normal((len(HARD_ANGLES), 4, group.dim))
+    if group in ROTATION_PART:
+        part = ROTATION_PART[group]
+        axis = tau[..., part] / np.linalg.norm(tau[..., part], axis=-1, keepdims=True)
+        tau[..., part] = axis * HARD_ANGLES[:, None, None]
+    x = group.exp(tau)
+    outputs = [x.as_matrix(), x.log(), group.jr(tau), group.jl(tau), x.adjoint(), x.log(jac=True)[1]]
+    inside = np.linalg.norm(tau[..., ROTATION_PART.get(group, slice(0, 0))], axis=-1) < 2 * np.pi - 1e-4
+    outputs += [group.jr_inv(tau[inside]), group.jl_inv(tau[inside])]
+    for out in outputs:
+        assert np.isfinite(out).all()
+    assert_same(group.exp(x.log()), x, tol=1e-11)
+
+
+@pytest.mark.parametrize("group", GROUPS, ids=group_id)
+@given(log_scale=st.floats(-12, -1), seed=st.integers(0, 2**32 - 1))
+def test_small_tangents_keep_relative_precision(group, log_scale, seed):
+    """Optimizer increments are tiny: ``Log(Exp(τ))`` must be accurate relative to ``|τ|``."""
+    tau = 10.0**log_scale * np.random.default_rng(seed).standard_normal((8, group.dim))
+    back = group.exp(tau).log()
+    assert np.abs(back - tau).max() <= 1e-12 * np.abs(tau).max()
+
+
+def test_rotations_by_exactly_pi():
+    axes = np.vstack([np.eye(3), -np.eye(3), np.ones((1, 3)) / np.sqrt(3)])
+    x = SO3.exp(np.pi * axes)
+    w = x.log()
+    np.testing.assert_allclose(np.linalg.norm(w, axis=-1), np.pi, atol=1e-15)
+    assert_same(SO3.exp(w), x)
+    # An exact π rotation matrix (no rounding from exp): diag(1, −1, −1).
+    r = SO3(np.diag([1.0, -1.0, -1.0]))
+    np.testing.assert_allclose(np.abs(r.log()), [np.pi, 0, 0], atol=1e-15)
+    assert_same(SO2.from_angle(np.pi), SO2.exp(SO2.from_angle(np.pi).log()))
+    assert SO2.from_angle(np.pi).angle() == pytest.approx(np.pi)
+
+
+def test_quaternion_with_tiny_scalar_part():
+    """Sophus's hard case: ``w = 1e-12`` is an angle of π − 2e-12."""
+    q = np.array([0.6, 0.0, 0.8, 1e-12])
+    x = SO3.from_quaternion(q, normalize=True)
+    w = x.log()
+    np.testing.assert_allclose(np.linalg.norm(w), np.pi - 2e-12, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(w / np.linalg.norm(w), [0.6, 0.0, 0.8], atol=1e-15)
+    np.testing.assert_allclose(x.as_quaternion(), q / np.linalg.norm(q), atol=1e-15)
+
+
+@pytest.mark.parametrize("group", [SO2, SO3, SE2, SE3], ids=group_id)
+def test_large_tangents_wrap(group, rng):
+    """``|θ| = 30``: Log returns an equivalent tangent with angle in [0, π] (SO2/SE2: (−π, π])."""
+    tau = rng.standard_normal((100, group.dim))
+    part = ROTATION_PART[group]
+    tau[..., part] *= 30.0 / np.linalg.norm(tau[..., part], axis=-1, keepdims=True)
+    x = group.exp(tau)
+    back = x.log()
+    assert (np.linalg.norm(back[..., part], axis=-1) <= np.pi + 1e-15).all()
+    assert_same(group.exp(back), x, tol=1e-12)
+
+
+def test_pure_translations():
+    rho = np.array([1.0, -2.0, 3.0])
+    np.testing.assert_array_equal(SE3.exp(np.r_[rho, 0, 0, 0]).translation(), rho)
+    np.testing.assert_array_equal(SE2.exp([1.0, -2.0, 0.0]).translation(), [1.0, -2.0])
+    np.testing.assert_allclose(SE3.exp(np.r_[rho, 1e-9, 0, 0]).log(), np.r_[rho, 1e-9, 0, 0], rtol=1e-14, atol=1e-22)
+
+
+def test_seed_example_rotation_action_jacobian(rng):
+    """The lecture notes' example: ``D(R·p)/DR = −R [p]×`` and ``D(R·p)/Dp = R``."""
+    r = SO3.random(rng, (10,))
+    p = rng.standard_normal((10, 3))
+    _, j_r, j_p = r.act(p, jac=True)
+    np.testing.assert_allclose(j_r, -r.as_matrix() @ SO3.hat(p), atol=1e-15)
+    np.testing.assert_array_equal(j_p, r.as_matrix())
+
+
+class TestAgainstScipy:
+    """SO(3) against ``scipy.spatial.transform.Rotation`` on uniform rotations."""
+
+    @pytest.fixture
+    def rotations(self, rng):
+        x = SO3.random(rng, (2000,))
+        return x, Rotation.from_matrix(x.as_matrix())
+
+    def test_exp(self, rng):
+        w = 2.0 * rng.standard_normal((2000, 3))
+        np.testing.assert_allclose(SO3.exp(w).as_matrix(), Rotation.from_rotvec(w).as_matrix(), atol=1e-14)
+
+    def test_log(self, rotations):
+        x, r = rotations
+        np.testing.assert_allclose(x.log(), r.as_rotvec(), atol=1e-12)
+
+    def test_quaternions(self, rotations, rng):
+        x, r = rotations
+        np.testing.assert_allclose(x.as_quaternion(), r.as_quat(canonical=True), atol=1e-14)
+        q = rng.standard_normal((100, 4))
+        q /= np.linalg.norm(q, axis=-1, keepdims=True)
+        np.testing.assert_allclose(SO3.from_quaternion(q).as_matrix(), Rotation.from_quat(q).as_matrix(), atol=1e-14)
+
+    def test_act_and_compose(self, rotations, rng):
+        x, r = rotations
+        p = rng.standard_normal((2000, 3))
+        np.testing.assert_allclose(x.act(p), r.apply(p), atol=1e-13)
+        np.testing.assert_allclose((x @ x[::-1]).as_matrix(), (r * r[::-1]).as_matrix(), atol=1e-14)
