@@ -35,26 +35,32 @@ def _norm(w: FloatArray) -> FloatArray:
 
 
 def exp(w: FloatArray) -> FloatArray:
-    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (eq. 143)."""
-    theta = _norm(w)
-    a = _series.sinc(theta)
-    b = _series.cosc(theta)
-    c = np.cos(theta)
-    x, y, z = w[..., 0], w[..., 1], w[..., 2]
+    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (eq. 143).
+
+    All coefficients come from one ``sin``/``cos`` pair of ``θ/2``:
+    ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``,
+    which has no cancellation, so its series ``½ − θ²/48`` is needed only below
+    ``θ = 1e-4`` (where the next term is ~1e-20).
+    """
+    flat = w.reshape(-1, 3)  # 1-D components, so the in-place updates below have arrays to update
+    x, y, z = flat[:, 0], flat[:, 1], flat[:, 2]
+    t = x * x
+    t += y * y
+    t += z * z
+    theta = np.sqrt(t)
+    half = 0.5 * theta
+    r = 0.5 - t / 48.0
+    np.divide(np.sin(half), theta, out=r, where=theta >= 1e-4)
+    a = np.cos(half)
+    a *= 2.0 * r
+    b = 2.0 * r * r
+    c = 1.0 - b * t
     bx, by, bz = b * x, b * y, b * z
     ax, ay, az = a * x, a * y, a * z
     bxy, bxz, byz = bx * y, bx * z, by * z
-    out = np.empty(w.shape[:-1] + (3, 3))
-    out[..., 0, 0] = c + bx * x
-    out[..., 0, 1] = bxy - az
-    out[..., 0, 2] = bxz + ay
-    out[..., 1, 0] = bxy + az
-    out[..., 1, 1] = c + by * y
-    out[..., 1, 2] = byz - ax
-    out[..., 2, 0] = bxz - ay
-    out[..., 2, 1] = byz + ax
-    out[..., 2, 2] = c + bz * z
-    return out
+    return np.stack(
+        [c + bx * x, bxy - az, bxz + ay, bxy + az, c + by * y, byz - ax, bxz - ay, byz + ax, c + bz * z], axis=-1
+    ).reshape(w.shape[:-1] + (3, 3))
 
 
 def to_quaternion(r: FloatArray) -> FloatArray:

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike
 
 from ..errors import ShapeError
 from . import _matrix
+from ._blocks import blockwise
 from ._checks import FloatArray, as_batch, broadcast_batch
 
 G = TypeVar("G", bound="LieGroup")
@@ -186,6 +187,10 @@ class LieGroup:
         except ValueError as err:
             raise ShapeError(f"{join.__name__}: batch shapes {[e.batch_shape for e in elements]}: {err}") from None
 
+    def _blocks(self, kernel: Any, *elements: FloatArray) -> FloatArray:
+        """``kernel(*elements)`` on stored arrays, evaluated block by block (see ``_blocks``)."""
+        return blockwise(kernel, elements, (len(self.storage_shape),) * len(elements))
+
     def _operand(self, other: Any) -> FloatArray:
         """The array of a second operand: same group, batch shape broadcastable with ours."""
         broadcast_batch(self.batch_shape, self._same(other).batch_shape)
@@ -251,7 +256,7 @@ class LieGroup:
     def exp(cls: type[G], tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac]:
         """``Exp(τ) = exp(τ^)``, batch shape ``tau.shape[:-1]``; Jacobian ``Jr(τ)``."""
         t = cls._tangent(tau)
-        x = cls._wrap(cls._exp(t))
+        x = cls._wrap(blockwise(cls._exp, (t,), (1,)))
         return (x, cls._jr(t)) if jac else x
 
     @overload
@@ -260,7 +265,7 @@ class LieGroup:
     def log(self, jac: Literal[True]) -> tuple[FloatArray, Jac]: ...
     def log(self, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac]:
         """``Log(X)``, shape ``(..., dim)``; Jacobian ``Jr(Log X)⁻¹`` (eq. 79)."""
-        tau = self._log(self._data)
+        tau = self._blocks(self._log, self._data)
         return (tau, self._jr_inv(tau)) if jac else tau
 
     @overload
@@ -270,7 +275,7 @@ class LieGroup:
     def compose(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
         """``X·Y``; Jacobians ``Ad_Y⁻¹`` wrt ``X`` and ``I`` wrt ``Y`` (eqs. 73–74)."""
         b = self._operand(other)
-        z = self._wrap(self._compose(self._data, b))
+        z = self._wrap(self._blocks(self._compose, self._data, b))
         if not jac:
             return z
         return z, _bcast(self._adjoint(self._inverse(b)), z.batch_shape), _eye(self.dim, z.batch_shape)
@@ -295,7 +300,7 @@ class LieGroup:
         """Group action on points ``p`` of shape ``(..., point_dim)``; Jacobians wrt ``X`` and ``p``."""
         pts = as_batch(p, (self.point_dim,), "p")
         batch = broadcast_batch(self.batch_shape, pts.shape[:-1])
-        q = self._act(self._data, pts)
+        q = blockwise(self._act, (self._data, pts), (len(self.storage_shape), 1))
         if not jac:
             return q
         j_x, j_p = self._act_jac(self._data, pts)
@@ -315,10 +320,11 @@ class LieGroup:
         """``X ⊕ τ = X·Exp(τ)``; Jacobians ``Ad_{Exp τ}⁻¹`` wrt ``X``, ``Jr(τ)`` wrt ``τ`` (eqs. 81–82)."""
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
+        if not jac:
+            kernel = lambda a, d: self._compose(a, self._exp(d))  # noqa: E731
+            return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(self._data, e))
-        if not jac:
-            return y
         return y, _bcast(self._adjoint(self._inverse(e)), y.batch_shape), _bcast(self._jr(t), y.batch_shape)
 
     @overload
@@ -329,7 +335,7 @@ class LieGroup:
         """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
         ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 83–84)."""
         x = self._operand(other)
-        tau = self._log(self._compose(self._inverse(x), self._data))
+        tau = self._blocks(lambda b, a: self._log(self._compose(self._inverse(a), b)), self._data, x)
         if not jac:
             return tau
         return tau, self._jr_inv(tau), -self._jr_inv(-tau)
@@ -346,10 +352,11 @@ class LieGroup:
         """
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
+        if not jac:
+            kernel = lambda a, d: self._compose(self._exp(d), a)  # noqa: E731
+            return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(e, self._data))
-        if not jac:
-            return y
         return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(self._jr(-t), y.batch_shape)
 
     @overload
@@ -360,7 +367,7 @@ class LieGroup:
         """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other`` (eq. 28). **Left-frame**
         Jacobians: ``Jl(τ)⁻¹`` wrt ``Y`` and ``−Jr(τ)⁻¹`` wrt ``X``."""
         x = self._operand(other)
-        tau = self._log(self._compose(self._data, self._inverse(x)))
+        tau = self._blocks(lambda b, a: self._log(self._compose(b, self._inverse(a))), self._data, x)
         if not jac:
             return tau
         return tau, self._jr_inv(-tau), -self._jr_inv(tau)
@@ -372,7 +379,7 @@ class LieGroup:
     def between(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
         """``X⁻¹·Y`` for ``X = self``, ``Y = other``; Jacobians ``−Ad_{X⁻¹Y}⁻¹`` wrt
         ``X`` and ``I`` wrt ``Y``."""
-        z = self._wrap(self._compose(self._inverse(self._data), self._operand(other)))
+        z = self._wrap(self._blocks(lambda a, b: self._compose(self._inverse(a), b), self._data, self._operand(other)))
         if not jac:
             return z
         j_x = -self._adjoint(self._inverse(z._data))
