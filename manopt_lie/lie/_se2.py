@@ -1,6 +1,6 @@
 """SE(2) kernels on arrays: homogeneous ``(..., 3, 3)``, tangents ``(ρx, ρy, θ)``.
 
-Formulas: Solà et al. (arXiv:1812.01537) eqs. 154–166.
+Formulas: Solà et al. (arXiv:1812.01537), Appendix C.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from ._checks import FloatArray
 
 
 def hat(tau: FloatArray) -> FloatArray:
-    """``[[0, −θ, ρx], [θ, 0, ρy], [0, 0, 0]]`` (eq. 155)."""
+    """``[[0, −θ, ρx], [θ, 0, ρy], [0, 0, 0]]``."""
     out = np.zeros(tau.shape[:-1] + (3, 3))
     out[..., 0, 1], out[..., 1, 0] = -tau[..., 2], tau[..., 2]
     out[..., :2, 2] = tau[..., :2]
@@ -24,7 +24,7 @@ def vee(m: FloatArray) -> FloatArray:
 
 
 def _v_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``(sin θ/θ, (1 − cos θ)/θ)``: ``V(θ) = [[a, −b], [b, a]]`` (eq. 158)."""
+    """``(sin θ/θ, (1 − cos θ)/θ)``: ``V(θ) = [[a, −b], [b, a]]``."""
     return _series.sinc(np.abs(theta)), theta * _series.cosc(np.abs(theta))
 
 
@@ -34,7 +34,7 @@ def _v_inverse_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 
 def exp(tau: FloatArray) -> FloatArray:
-    """``[[R(θ), V(θ) ρ], [0, 1]]`` (eq. 156)."""
+    """``[[R(θ), V(θ) ρ], [0, 1]]``."""
     theta = tau[..., 2]
     a, b = _v_coefficients(theta)
     rho = tau[..., :2]
@@ -42,7 +42,7 @@ def exp(tau: FloatArray) -> FloatArray:
 
 
 def log(m: FloatArray) -> FloatArray:
-    """``(V(θ)⁻¹ t, θ)`` with ``θ = atan2(R₁₀, R₀₀) ∈ (−π, π]`` (eq. 157)."""
+    """``(V(θ)⁻¹ t, θ)`` with ``θ = atan2(R₁₀, R₀₀) ∈ (−π, π]``."""
     theta = _matrix.angle2(m[..., :2, :2])
     a, b = _v_inverse_coefficients(theta)
     t = m[..., :2, 2]
@@ -51,14 +51,14 @@ def log(m: FloatArray) -> FloatArray:
 
 
 def adjoint(m: FloatArray) -> FloatArray:
-    """``[[R, (t_y, −t_x)ᵀ], [0, 1]]`` (eq. 161)."""
+    """``[[R, (t_y, −t_x)ᵀ], [0, 1]]``."""
     out = m.copy()
     out[..., 0, 2], out[..., 1, 2] = m[..., 1, 2], -m[..., 0, 2]
     return out
 
 
 def jr(tau: FloatArray) -> FloatArray:
-    """Right Jacobian (eq. 163)::
+    """Right Jacobian::
 
         [[ sin θ/θ,        (1−cos θ)/θ, ρx (θ−sin θ)/θ² − ρy (1−cos θ)/θ²],
          [−(1−cos θ)/θ,    sin θ/θ,     ρx (1−cos θ)/θ² + ρy (θ−sin θ)/θ²],

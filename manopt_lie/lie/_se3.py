@@ -1,6 +1,7 @@
 """SE(3) kernels on arrays: homogeneous ``(..., 4, 4)``, tangents ``(ρ, θ)`` as ``(..., 6)``.
 
-Formulas: Solà et al. (arXiv:1812.01537) eqs. 169–180; Barfoot §7.1.5 for ``Q``.
+Formulas: Solà et al. (arXiv:1812.01537), Appendix D, with ``Jr`` from eqs. 179–180;
+Barfoot, "State Estimation for Robotics", §7.1.5 for ``Q``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from ._checks import FloatArray
 
 
 def hat(tau: FloatArray) -> FloatArray:
-    """``[[θ^, ρ], [0, 0]]`` (eq. 169)."""
+    """``[[θ^, ρ], [0, 0]]``."""
     out = np.zeros(tau.shape[:-1] + (4, 4))
     out[..., :3, :3] = _so3.hat(tau[..., 3:])
     out[..., :3, 3] = tau[..., :3]
@@ -24,20 +25,20 @@ def vee(m: FloatArray) -> FloatArray:
 
 
 def exp(tau: FloatArray) -> FloatArray:
-    """``[[Exp(θ), Jl(θ) ρ], [0, 1]]`` (eq. 172)."""
+    """``[[Exp(θ), Jl(θ) ρ], [0, 1]]``."""
     rho, theta = tau[..., :3], tau[..., 3:]
     return _matrix.assemble(_so3.exp(theta), _so3.jl_apply(theta, rho))
 
 
 def log(m: FloatArray) -> FloatArray:
-    """``(Jl(θ)⁻¹ t, θ)`` with ``θ = Log(R)`` (eq. 173)."""
+    """``(Jl(θ)⁻¹ t, θ)`` with ``θ = Log(R)``."""
     r, t = _matrix.split(m)
     theta = _so3.log(r)
     return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
 
 
 def adjoint(m: FloatArray) -> FloatArray:
-    """``[[R, [t]× R], [0, R]]`` (eq. 178)."""
+    """``[[R, [t]× R], [0, R]]``."""
     r, t = _matrix.split(m)
     out = np.zeros(m.shape[:-2] + (6, 6))
     out[..., :3, :3] = r
@@ -88,7 +89,7 @@ def jr_inv(tau: FloatArray) -> FloatArray:
 
 
 def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``D(T·p)/DT = [R, −R[p]×]``, ``D(T·p)/Dp = R`` (eq. 181)."""
+    """``D(T·p)/DT = [R, −R[p]×]``, ``D(T·p)/Dp = R``."""
     r, _ = _matrix.split(m)
     j_x = _matrix.hconcat(r, _so3.act_jac_rotation(r, p))
     return j_x, r

@@ -1,6 +1,6 @@
 """SO(2) kernels on arrays: rotation matrices ``(..., 2, 2)``, tangents ``θ`` as ``(..., 1)``.
 
-SO(2) is commutative: ``Ad = Jr = Jl = 1`` (Solà et al. eqs. 151–153).
+SO(2) is commutative: ``Ad = Jr = Jl = 1``.
 """
 
 from __future__ import annotations
@@ -37,5 +37,5 @@ def ones(tau_or_m: FloatArray, batch_ndim: int) -> FloatArray:
 
 
 def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``D(R·p)/DR = R J p`` (eq. 152), ``D(R·p)/Dp = R``."""
+    """``D(R·p)/DR = R J p``, ``D(R·p)/Dp = R``."""
     return _matrix.rotate_vectors(m, _matrix.skew2(p))[..., None], m

@@ -13,7 +13,7 @@ from ._checks import FloatArray
 
 
 def hat(w: FloatArray) -> FloatArray:
-    """``[w]×`` (eq. 141)."""
+    """``[w]×``."""
     x, y, z = w[..., 0], w[..., 1], w[..., 2]
     out = np.zeros(w.shape[:-1] + (3, 3))
     out[..., 0, 1], out[..., 0, 2] = -z, y
@@ -35,7 +35,7 @@ def _norm(w: FloatArray) -> FloatArray:
 
 
 def exp(w: FloatArray) -> FloatArray:
-    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (eq. 143).
+    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×``.
 
     All coefficients come from one ``sin``/``cos`` pair of ``θ/2``:
     ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``,
@@ -115,16 +115,15 @@ def quaternion_log(q: FloatArray) -> FloatArray:
     """``θu`` of a unit quaternion with ``w ≥ 0``: ``θ = 2 atan2(|v|, w) ∈ [0, π]``."""
     v, w = q[..., :3], q[..., 3]
     s = _norm(v)
-    # θ/|v| → 2/w (1 − |v|²/(3w²)) as |v| → 0, where w → 1.
+    # θ/|v| → 2/w (1 − |v|²/(3w²)) as |v| → 0, where w → 1 (and w = 0 only far from there).
     small = s < 1e-8
-    ratio = np.where(
-        small, 2.0 / w * (1.0 - s * s / (3.0 * w * w)), 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s)
-    )
+    ws = np.where(small, w, 1.0)
+    ratio = np.where(small, 2.0 / ws * (1.0 - s * s / (3.0 * ws * ws)), 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
     return ratio[..., None] * v
 
 
 def log(r: FloatArray) -> FloatArray:
-    """``Log(R) = θu`` with ``θ ∈ [0, π]`` (eq. 144), through the quaternion."""
+    """``Log(R) = θu`` with ``θ ∈ [0, π]``, through the quaternion."""
     return quaternion_log(to_quaternion(r))
 
 
@@ -168,5 +167,5 @@ def jr_inv(w: FloatArray) -> FloatArray:
 
 
 def act_jac_rotation(r: FloatArray, p: FloatArray) -> FloatArray:
-    """``D(R·p)/DR = −R [p]×`` (eq. 149)."""
+    """``D(R·p)/DR = −R [p]×``."""
     return -r @ hat(p)

@@ -3,10 +3,10 @@
 A group subclass supplies the *minimal* kernels on raw arrays (``_exp``,
 ``_log``, ``_compose``, ``_inverse``, ``_act``, ``_act_jac``, ``_adjoint``,
 ``_jr``, ``_jr_inv``, ``_hat``, ``_vee``, ``_identity``, ``_random``,
-``_validate``, ``_project``); this base derives everything else — ``rplus``,
+``_validated``, ``_project``); this base derives everything else — ``rplus``,
 ``lplus``, ``rminus``, ``lminus``, ``between``, ``jl``, ``jl_inv``, ``dist``,
 ``interpolate`` and all Jacobians — from the blocks of CONVENTIONS §4 (Solà et
-al., arXiv:1812.01537, §IV-B and eqs. 71–86).
+al., arXiv:1812.01537, eqs. 62–83).
 
 Jacobians are *right* (local) Jacobians,
 ``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ``, except for ``lplus``/``lminus``, whose
@@ -64,13 +64,14 @@ class LieGroup:
     # ---- construction -------------------------------------------------------------
 
     def __init__(self, data: ArrayLike) -> None:
-        """Wrap an array of elements, checking shape, finiteness and membership.
+        """Wrap an array of elements, checking shape, finiteness and membership
+        (as :meth:`from_matrix` with its defaults).
 
         The array is copied. Use :meth:`from_matrix` to choose the tolerance
         or to project onto the group.
         """
         a = self._checked(data, project=False, tol=_matrix.DEFAULT_TOL, name=type(self).__name__)
-        object.__setattr__(self, "_data", a.copy())
+        object.__setattr__(self, "_data", a.copy() if np.may_share_memory(a, data) else a)
         self._data.flags.writeable = False
 
     @classmethod
@@ -90,11 +91,15 @@ class LieGroup:
     @classmethod
     def _checked(cls, data: ArrayLike, *, project: bool, tol: float, name: str) -> FloatArray:
         a = as_batch(data, cls.storage_shape, name)
-        return cls._project(a) if project else (cls._validate(a, tol, name) or a)
+        return cls._project(a) if project else cls._validated(a, tol, name)
 
     @classmethod
     def from_matrix(cls: type[G], m: ArrayLike, *, project: bool = False, tol: float = _matrix.DEFAULT_TOL) -> G:
         """Element(s) from matrices ``(..., k, k)`` (``k`` = :meth:`as_matrix` size).
+
+        A matrix accepted within ``tol`` is re-orthonormalized (two Newton steps
+        toward its polar factor), so stored rotations are orthonormal to machine
+        precision.
 
         Parameters
         ----------
@@ -111,7 +116,8 @@ class LieGroup:
         ------
         ShapeError, NonFiniteError, NotInGroupError
         """
-        return cls._wrap(cls._checked(cls._matrix_to_data(m), project=project, tol=tol, name="from_matrix").copy())
+        a = cls._checked(cls._matrix_to_data(m), project=project, tol=tol, name="from_matrix")
+        return cls._wrap(a.copy() if np.may_share_memory(a, m) else a)
 
     @classmethod
     def _matrix_to_data(cls, m: ArrayLike) -> ArrayLike:
@@ -226,12 +232,12 @@ class LieGroup:
 
     @classmethod
     def jr(cls, tau: ArrayLike) -> FloatArray:
-        """Right Jacobian: ``Exp(τ + δ) ≈ Exp(τ) Exp(Jr(τ) δ)`` (eq. 67), ``(..., dim, dim)``."""
+        """Right Jacobian: ``Exp(τ + δ) ≈ Exp(τ) Exp(Jr(τ) δ)`` (eqs. 67–68), ``(..., dim, dim)``."""
         return cls._jr(cls._tangent(tau))
 
     @classmethod
     def jl(cls, tau: ArrayLike) -> FloatArray:
-        """Left Jacobian: ``Exp(τ + δ) ≈ Exp(Jl(τ) δ) Exp(τ)``; ``Jl(τ) = Jr(−τ)`` (eq. 72)."""
+        """Left Jacobian: ``Exp(τ + δ) ≈ Exp(Jl(τ) δ) Exp(τ)``; ``Jl(τ) = Jr(−τ)`` (eqs. 71–72, 76)."""
         return cls._jr(-cls._tangent(tau))
 
     @classmethod
@@ -273,7 +279,7 @@ class LieGroup:
     @overload
     def compose(self: G, other: G, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
     def compose(self: G, other: G, jac: bool = False) -> G | tuple[G, Jac, Jac]:
-        """``X·Y``; Jacobians ``Ad_Y⁻¹`` wrt ``X`` and ``I`` wrt ``Y`` (eqs. 73–74)."""
+        """``X·Y``; Jacobians ``Ad_Y⁻¹`` wrt ``X`` and ``I`` wrt ``Y`` (eqs. 65–66)."""
         b = self._operand(other)
         z = self._wrap(self._blocks(self._compose, self._data, b))
         if not jac:
@@ -288,7 +294,7 @@ class LieGroup:
     @overload
     def inverse(self: G, jac: Literal[True]) -> tuple[G, Jac]: ...
     def inverse(self: G, jac: bool = False) -> G | tuple[G, Jac]:
-        """``X⁻¹``; Jacobian ``−Ad_X`` (eq. 72)."""
+        """``X⁻¹``; Jacobian ``−Ad_X`` (eq. 62)."""
         xi = self._wrap(self._inverse(self._data))
         return (xi, -self._adjoint(self._data)) if jac else xi
 
@@ -307,7 +313,7 @@ class LieGroup:
         return q, _bcast(j_x, batch), _bcast(j_p, batch)
 
     def adjoint(self) -> FloatArray:
-        """``Ad_X``, with ``Ad_X τ = (X τ^ X⁻¹)^∨`` (eq. 29), shape ``(..., dim, dim)``."""
+        """``Ad_X``, with ``Ad_X τ = (X τ^ X⁻¹)^∨``, shape ``(..., dim, dim)``."""
         return self._adjoint(self._data)
 
     # ---- deduced API --------------------------------------------------------------
@@ -317,7 +323,7 @@ class LieGroup:
     @overload
     def rplus(self: G, tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
     def rplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
-        """``X ⊕ τ = X·Exp(τ)``; Jacobians ``Ad_{Exp τ}⁻¹`` wrt ``X``, ``Jr(τ)`` wrt ``τ`` (eqs. 81–82)."""
+        """``X ⊕ τ = X·Exp(τ)``; Jacobians ``Ad_{Exp τ}⁻¹`` wrt ``X``, ``Jr(τ)`` wrt ``τ`` (eqs. 80–81)."""
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
         if not jac:
@@ -333,7 +339,7 @@ class LieGroup:
     def rminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
     def rminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
         """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
-        ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 83–84)."""
+        ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 82–83)."""
         x = self._operand(other)
         tau = self._blocks(lambda b, a: self._log(self._compose(self._inverse(a), b)), self._data, x)
         if not jac:
@@ -345,7 +351,7 @@ class LieGroup:
     @overload
     def lplus(self: G, tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
     def lplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
-        """``τ ⊕ X = Exp(τ)·X`` (eq. 25). **Left-frame** Jacobians: ``Ad_{Exp τ}``
+        """``τ ⊕ X = Exp(τ)·X``. **Left-frame** Jacobians: ``Ad_{Exp τ}``
         wrt ``X`` and ``Jl(τ)`` wrt ``τ``, i.e. ``Exp(τ+δ)·Exp(ε)X ≈ Exp(Jl δ + Ad ε)·Y``.
 
         The right Jacobians follow as ``J_X = I`` and ``J_τ = Ad_Y⁻¹ Jl(τ)``.
@@ -364,7 +370,7 @@ class LieGroup:
     @overload
     def lminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
     def lminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
-        """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other`` (eq. 28). **Left-frame**
+        """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other``. **Left-frame**
         Jacobians: ``Jl(τ)⁻¹`` wrt ``Y`` and ``−Jr(τ)⁻¹`` wrt ``X``."""
         x = self._operand(other)
         tau = self._blocks(lambda b, a: self._log(self._compose(b, self._inverse(a))), self._data, x)
@@ -429,6 +435,8 @@ class LieGroup:
     @classmethod
     def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray: raise NotImplementedError
     @classmethod
-    def _validate(cls, a: FloatArray, tol: float, name: str) -> None: raise NotImplementedError
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        """``a`` checked to be in the group within ``tol``, then polished onto it exactly."""
+        raise NotImplementedError
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray: raise NotImplementedError

@@ -39,8 +39,9 @@ class _RotationGroup(LieGroup):
         return np.array(np.broadcast_to(np.eye(cls.point_dim), batch + cls.storage_shape))
 
     @classmethod
-    def _validate(cls, a: FloatArray, tol: float, name: str) -> None:
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
         _matrix.check_rotation(a, tol, name)
+        return _matrix.polish_rotation(a)
 
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray:
@@ -67,9 +68,11 @@ class _TransformGroup(LieGroup):
         return _matrix.assemble(r, rng.standard_normal(batch + (cls.point_dim,)))
 
     @classmethod
-    def _validate(cls, a: FloatArray, tol: float, name: str) -> None:
-        _matrix.check_rotation(_matrix.split(a)[0], tol, name)
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        r, t = _matrix.split(a)
+        _matrix.check_rotation(r, tol, name)
         _matrix.check_last_row(a, tol, name)
+        return _matrix.assemble(_matrix.polish_rotation(r), t)
 
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray:

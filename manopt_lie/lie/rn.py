@@ -81,8 +81,8 @@ class RnGroup(LieGroup):
         return rng.standard_normal(batch + (cls.dim,))
 
     @classmethod
-    def _validate(cls, a: FloatArray, tol: float, name: str) -> None:
-        return None
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        return a
 
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray:

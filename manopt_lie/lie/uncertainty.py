@@ -1,8 +1,8 @@
-"""Uncertainty on Lie groups: Gaussians ``X = X̄ ⊕ τ``, ``τ ~ N(0, P)`` (Solà et al. §V).
+"""Uncertainty on Lie groups: Gaussians ``X = X̄ ⊕ τ``, ``τ ~ N(0, P)`` (Solà et al., §III).
 
 Covariances live in the tangent space at the mean. With the default right
 (local) perturbation ``X = X̄·Exp(τ)``; the left (global) one ``X = Exp(τ)·X̄``
-has covariance ``Ad_X̄ P Ad_X̄ᵀ`` (eq. 54).
+has covariance ``Ad_X̄ P Ad_X̄ᵀ``.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def _square(p: ArrayLike, n: int, name: str) -> FloatArray:
 
 
 def propagate_covariance(J: ArrayLike, P: ArrayLike) -> FloatArray:  # noqa: N803 - math names
-    """First-order propagation ``J P Jᵀ`` (eq. 55), batched and broadcast.
+    """First-order propagation ``J P Jᵀ``, batched and broadcast.
 
     ``J`` is ``(..., m, n)``, ``P`` is ``(..., n, n)``; the result is ``(..., m, m)``.
     """

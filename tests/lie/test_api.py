@@ -72,7 +72,9 @@ def test_from_matrix_validates_and_projects(group, rng):
     snapped = group.from_matrix(noisy, project=True)
     group.from_matrix(snapped.as_matrix(), tol=1e-12)
     assert x.chordal_dist(snapped).max() < 1e-2
-    group.from_matrix(noisy, tol=0.1)  # a looser tolerance accepts it
+    accepted = group.from_matrix(noisy, tol=0.1)  # a looser tolerance accepts it, polished onto the group
+    group.from_matrix(accepted.as_matrix(), tol=1e-14)
+    assert accepted.chordal_dist(snapped).max() < 1e-9  # the polar factor is the nearest rotation
 
     reflection = np.array(x.as_matrix())
     reflection[..., 0, :] *= -1
