@@ -127,7 +127,14 @@ def main(argv: list[str] | None = None) -> int:
     print_table(
         f"SO(3), {args.n:,} elements: manopt_lie vs scipy Rotation (median of {args.repeat})",
         vs_scipy,
-        {"ours_ms": ".1f", "scipy_ms": ".1f", "ratio": ".2f", "ratio_vs_scipy_to_matrix": ".2f", "loop_us_per_element": ".1f", "vectorized_speedup": ".0f"},
+        {
+            "ours_ms": ".1f",
+            "scipy_ms": ".1f",
+            "ratio": ".2f",
+            "ratio_vs_scipy_to_matrix": ".2f",
+            "loop_us_per_element": ".1f",
+            "vectorized_speedup": ".0f",
+        },
     )
     groups = bench_all_groups(args.n // 10, args.repeat, rng)
     print_table(

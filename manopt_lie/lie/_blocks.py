@@ -25,11 +25,11 @@ def blockwise(kernel: Callable[..., FloatArray], args: tuple[FloatArray, ...], t
     ``trailing[i]`` is the number of non-batch (trailing) axes of ``args[i]``. The
     kernel must act independently on each batch element.
     """
-    batch = np.broadcast_shapes(*(a.shape[: a.ndim - k] for a, k in zip(args, trailing)))
+    batch = np.broadcast_shapes(*(a.shape[: a.ndim - k] for a, k in zip(args, trailing, strict=True)))
     rows = max(1, BLOCK // max(1, prod(batch[1:])))
     if not batch or batch[0] <= 2 * rows:
         return kernel(*args)
-    args = tuple(np.broadcast_to(a, batch + a.shape[a.ndim - k :]) for a, k in zip(args, trailing))
+    args = tuple(np.broadcast_to(a, batch + a.shape[a.ndim - k :]) for a, k in zip(args, trailing, strict=True))
     first = kernel(*(a[:rows] for a in args))
     out = np.empty(batch + first.shape[len(batch) :])
     out[:rows] = first

@@ -60,9 +60,9 @@ def adjoint(m: FloatArray) -> FloatArray:
 def jr(tau: FloatArray) -> FloatArray:
     """Right Jacobian::
 
-        [[ sin θ/θ,        (1−cos θ)/θ, ρx (θ−sin θ)/θ² − ρy (1−cos θ)/θ²],
-         [−(1−cos θ)/θ,    sin θ/θ,     ρx (1−cos θ)/θ² + ρy (θ−sin θ)/θ²],
-         [ 0,              0,           1                                 ]]
+    [[ sin θ/θ,        (1−cos θ)/θ, ρx (θ−sin θ)/θ² − ρy (1−cos θ)/θ²],
+     [−(1−cos θ)/θ,    sin θ/θ,     ρx (1−cos θ)/θ² + ρy (θ−sin θ)/θ²],
+     [ 0,              0,           1                                 ]]
     """
     rho_x, rho_y, theta = tau[..., 0], tau[..., 1], tau[..., 2]
     ang = np.abs(theta)

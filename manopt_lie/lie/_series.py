@@ -48,9 +48,7 @@ def cosc(theta: FloatArray) -> FloatArray:
 
 def sinc3(theta: FloatArray) -> FloatArray:
     """``(θ − sin θ) / θ³``."""
-    return _blend(
-        theta, 0.5, [(-1) ** j / factorial(2 * j + 3) for j in _TERMS], lambda th: (th - np.sin(th)) / th**3
-    )
+    return _blend(theta, 0.5, [(-1) ** j / factorial(2 * j + 3) for j in _TERMS], lambda th: (th - np.sin(th)) / th**3)
 
 
 def jinv_coef(theta: FloatArray) -> FloatArray:

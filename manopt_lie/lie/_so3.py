@@ -118,7 +118,8 @@ def quaternion_log(q: FloatArray) -> FloatArray:
     # θ/|v| → 2/w (1 − |v|²/(3w²)) as |v| → 0, where w → 1 (and w = 0 only far from there).
     small = s < 1e-8
     ws = np.where(small, w, 1.0)
-    ratio = np.where(small, 2.0 / ws * (1.0 - s * s / (3.0 * ws * ws)), 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
+    series = 2.0 / ws * (1.0 - s * s / (3.0 * ws * ws))
+    ratio = np.where(small, series, 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
     return ratio[..., None] * v
 
 

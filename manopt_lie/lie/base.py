@@ -327,7 +327,7 @@ class LieGroup:
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
         if not jac:
-            kernel = lambda a, d: self._compose(a, self._exp(d))  # noqa: E731
+            kernel = lambda a, d: self._compose(a, self._exp(d))
             return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(self._data, e))
@@ -359,7 +359,7 @@ class LieGroup:
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
         if not jac:
-            kernel = lambda a, d: self._compose(self._exp(d), a)  # noqa: E731
+            kernel = lambda a, d: self._compose(self._exp(d), a)
             return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(e, self._data))
@@ -409,34 +409,62 @@ class LieGroup:
     # ---- kernels every group supplies ---------------------------------------------
 
     @staticmethod
-    def _exp(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    def _exp(tau: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _log(data: FloatArray) -> FloatArray: raise NotImplementedError
+    def _log(data: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _compose(a: FloatArray, b: FloatArray) -> FloatArray: raise NotImplementedError
+    def _compose(a: FloatArray, b: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _inverse(a: FloatArray) -> FloatArray: raise NotImplementedError
+    def _inverse(a: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _act(a: FloatArray, p: FloatArray) -> FloatArray: raise NotImplementedError
+    def _act(a: FloatArray, p: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _act_jac(a: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]: raise NotImplementedError
+    def _act_jac(a: FloatArray, p: FloatArray, /) -> tuple[FloatArray, FloatArray]:
+        raise NotImplementedError
+
     @staticmethod
-    def _adjoint(a: FloatArray) -> FloatArray: raise NotImplementedError
+    def _adjoint(a: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _jr(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    def _jr(tau: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _jr_inv(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    def _jr_inv(tau: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _hat(tau: FloatArray) -> FloatArray: raise NotImplementedError
+    def _hat(tau: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @staticmethod
-    def _vee(m: FloatArray) -> FloatArray: raise NotImplementedError
+    def _vee(m: FloatArray, /) -> FloatArray:
+        raise NotImplementedError
+
     @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray: raise NotImplementedError
+    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
+        raise NotImplementedError
+
     @classmethod
-    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray: raise NotImplementedError
+    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
+        raise NotImplementedError
+
     @classmethod
     def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
         """``a`` checked to be in the group within ``tol``, then polished onto it exactly."""
         raise NotImplementedError
+
     @classmethod
-    def _project(cls, a: FloatArray) -> FloatArray: raise NotImplementedError
+    def _project(cls, a: FloatArray) -> FloatArray:
+        raise NotImplementedError

@@ -8,7 +8,7 @@ Rⁿ factors mix with rotations and poses in products of groups.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -112,7 +112,7 @@ class RnGroup(LieGroup):
         return (_rebuild, (self.dim, np.array(self._data)))
 
 
-def Rn(n: int) -> type[RnGroup]:  # noqa: N802 - the group's name
+def Rn(n: int) -> type[RnGroup]:
     """The group ``(Rⁿ, +)`` as a :class:`LieGroup` class with ``dim = n``
     (one class per ``n``: ``Rn(3) is Rn(3)``)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
@@ -120,7 +120,7 @@ def Rn(n: int) -> type[RnGroup]:  # noqa: N802 - the group's name
     return _rn_class(int(n))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _rn_class(n: int) -> type[RnGroup]:
     attrs = {"__slots__": (), "dim": n, "point_dim": n, "storage_shape": (n,), "__module__": __name__}
     return type(f"R{n}", (RnGroup,), attrs)

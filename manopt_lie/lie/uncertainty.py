@@ -24,7 +24,7 @@ def _square(p: ArrayLike, n: int, name: str) -> FloatArray:
     return as_batch(p, (n, n), name)
 
 
-def propagate_covariance(J: ArrayLike, P: ArrayLike) -> FloatArray:  # noqa: N803 - math names
+def propagate_covariance(J: ArrayLike, P: ArrayLike) -> FloatArray:
     """First-order propagation ``J P Jᵀ``, batched and broadcast.
 
     ``J`` is ``(..., m, n)``, ``P`` is ``(..., n, n)``; the result is ``(..., m, m)``.
@@ -84,7 +84,8 @@ def mean_and_covariance(
         if np.abs(step).max(initial=0.0) <= tol:
             break
     else:
-        warnings.warn(f"mean_and_covariance: not converged in {max_iterations} iterations", RuntimeWarning, stacklevel=2)
+        message = f"mean_and_covariance: not converged in {max_iterations} iterations"
+        warnings.warn(message, RuntimeWarning, stacklevel=2)
     tau = xs.rminus(mean)
     cov = np.einsum("n...i,n...j->...ij", tau, tau) / (n - ddof)
     return mean, cov

@@ -64,10 +64,13 @@ def test_errors_are_value_errors(group):
 @pytest.mark.parametrize("group", [SO2, SO3, SE2, SE3], ids=group_id)
 def test_from_matrix_validates_and_projects(group, rng):
     x = group.random(rng, (5,))
-    noisy = x.as_matrix() + 1e-3 * rng.standard_normal(x.as_matrix().shape) * (
-        np.arange(group.storage_shape[0]) < group.point_dim
-    )[:, None]
-    with pytest.raises(NotInGroupError, match="not orthonormal.*project=True"):
+    noisy = (
+        x.as_matrix()
+        + 1e-3
+        * rng.standard_normal(x.as_matrix().shape)
+        * (np.arange(group.storage_shape[0]) < group.point_dim)[:, None]
+    )
+    with pytest.raises(NotInGroupError, match=r"not orthonormal.*project=True"):
         group.from_matrix(noisy)
     snapped = group.from_matrix(noisy, project=True)
     group.from_matrix(snapped.as_matrix(), tol=1e-12)

@@ -16,8 +16,28 @@ from .helpers import GROUPS, ROTATION_PART, assert_same, group_id
 # Angles that stress every branch: exact zero, denormal-squared, both sides of the
 # series threshold, π and its neighbours, and values past π (wrapping).
 HARD_ANGLES = np.array(
-    [0.0, 1e-300, 1e-160, 1e-20, 1e-8, 1e-4, 0.3 - 1e-12, 0.3, 0.5, 0.7 + 1e-12, 1.0, np.pi / 2, np.pi - 1e-6, np.pi - 1e-9, np.pi - 1e-12, np.pi,
-     np.pi + 1e-9, 4.0, 2 * np.pi - 1e-3, 30.0]
+    [
+        0.0,
+        1e-300,
+        1e-160,
+        1e-20,
+        1e-8,
+        1e-4,
+        0.3 - 1e-12,
+        0.3,
+        0.5,
+        0.7 + 1e-12,
+        1.0,
+        np.pi / 2,
+        np.pi - 1e-6,
+        np.pi - 1e-9,
+        np.pi - 1e-12,
+        np.pi,
+        np.pi + 1e-9,
+        4.0,
+        2 * np.pi - 1e-3,
+        30.0,
+    ]
 )
 
 
