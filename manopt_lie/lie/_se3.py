@@ -37,16 +37,6 @@ def log(m: FloatArray) -> FloatArray:
     return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
 
 
-def adjoint(m: FloatArray) -> FloatArray:
-    """``[[R, [t]× R], [0, R]]``."""
-    r, t = _matrix.split(m)
-    out = np.zeros(m.shape[:-2] + (6, 6))
-    out[..., :3, :3] = r
-    out[..., 3:, 3:] = r
-    out[..., :3, 3:] = _so3.hat(t) @ r
-    return out
-
-
 def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     """Barfoot's ``Q(ρ, θ)``, the top-right block of ``Jl(ρ, θ)`` (Solà eq. 180)::
 
@@ -66,26 +56,32 @@ def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     return 0.5 * p + c1 * (tp + pt + tpt) + c2 * (t @ tp + pt @ t - 3.0 * tpt) + c3 * (tpt @ t + t @ tpt)
 
 
+def _block_upper(diagonal: FloatArray, corner: FloatArray) -> FloatArray:
+    """``[[D, C], [0, D]]`` from 3×3 blocks."""
+    out = np.zeros(np.broadcast_shapes(diagonal.shape, corner.shape)[:-2] + (6, 6))
+    out[..., :3, :3] = diagonal
+    out[..., 3:, 3:] = diagonal
+    out[..., :3, 3:] = corner
+    return out
+
+
 def jr(tau: FloatArray) -> FloatArray:
     """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179)."""
     rho, theta = tau[..., :3], tau[..., 3:]
-    j = _so3.jr(theta)
-    out = np.zeros(tau.shape[:-1] + (6, 6))
-    out[..., :3, :3] = j
-    out[..., 3:, 3:] = j
-    out[..., :3, 3:] = q_matrix(-rho, -theta)
-    return out
+    return _block_upper(_so3.jr(theta), q_matrix(-rho, -theta))
 
 
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``."""
     rho, theta = tau[..., :3], tau[..., 3:]
     ji = _so3.jr_inv(theta)
-    out = np.zeros(tau.shape[:-1] + (6, 6))
-    out[..., :3, :3] = ji
-    out[..., 3:, 3:] = ji
-    out[..., :3, 3:] = -ji @ q_matrix(-rho, -theta) @ ji
-    return out
+    return _block_upper(ji, -ji @ q_matrix(-rho, -theta) @ ji)
+
+
+def adjoint(m: FloatArray) -> FloatArray:
+    """``[[R, [t]× R], [0, R]]``."""
+    r, t = _matrix.split(m)
+    return _block_upper(r, _so3.hat(t) @ r)
 
 
 def act_jac(m: FloatArray, p: FloatArray) -> tuple[FloatArray, FloatArray]:
