@@ -44,16 +44,34 @@ def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
               + c₃(θ^ρ^θ^² + θ^²ρ^θ^)
 
     with ``c₁ = (θ − sin θ)/θ³``, ``c₂ = (θ² + 2cos θ − 2)/(2θ⁴)``,
-    ``c₃ = (2θ − 3 sin θ + θ cos θ)/(2θ⁵)``.
+    ``c₃ = (2θ − 3 sin θ + θ cos θ)/(2θ⁵)``. Evaluated without matrix products
+    through ``a^b^ = b aᵀ − (a·b) I`` and ``a^b^a^ = −(a·b) a^``, which give,
+    with ``d = θ·ρ``, ``s = |θ|²`` and ``u = θ × ρ``::
+
+        Q = (½ − 2c₂s) ρ^ + (3c₂ − c₁) d θ^ + c₁(ρθᵀ + θρᵀ) + c₂(θuᵀ − uθᵀ)
+              − 2c₃ d θθᵀ + 2d (c₃s − c₁) I
     """
-    angle = np.sqrt(np.einsum("...i,...i->...", theta, theta))
-    c1 = _series.sinc3(angle)[..., None, None]
-    c2 = _series.q_coef2(angle)[..., None, None]
-    c3 = _series.q_coef3(angle)[..., None, None]
-    p, t = _so3.hat(rho), _so3.hat(theta)
-    tp, pt = t @ p, p @ t
-    tpt = tp @ t
-    return 0.5 * p + c1 * (tp + pt + tpt) + c2 * (t @ tp + pt @ t - 3.0 * tpt) + c3 * (tpt @ t + t @ tpt)
+    s = np.einsum("...i,...i->...", theta, theta)
+    d = np.einsum("...i,...i->...", theta, rho)
+    angle = np.sqrt(s)
+    c1, c2, c3 = _series.sinc3(angle), _series.q_coef2(angle), _series.q_coef3(angle)
+    u = np.cross(theta, rho)
+
+    def outer(a: FloatArray, b: FloatArray) -> FloatArray:
+        return a[..., :, None] * b[..., None, :]
+
+    def scalar(x: FloatArray) -> FloatArray:
+        return x[..., None, None]
+
+    tr = outer(theta, rho)
+    return (
+        scalar(0.5 - 2.0 * c2 * s) * _so3.hat(rho)
+        + scalar((3.0 * c2 - c1) * d) * _so3.hat(theta)
+        + scalar(c1) * (tr + np.swapaxes(tr, -1, -2))
+        + scalar(c2) * (outer(theta, u) - outer(u, theta))
+        - scalar(2.0 * c3 * d) * outer(theta, theta)
+        + scalar(2.0 * d * (c3 * s - c1)) * np.eye(3)
+    )
 
 
 def _block_upper(diagonal: FloatArray, corner: FloatArray) -> FloatArray:

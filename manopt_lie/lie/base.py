@@ -220,6 +220,11 @@ class LieGroup:
     def _tangent(cls, tau: ArrayLike, name: str = "tau") -> FloatArray:
         return as_batch(tau, (cls.dim,), name)
 
+    @staticmethod
+    def _tangent_map(kernel: Any, tau: FloatArray) -> FloatArray:
+        """``kernel(tau)`` for a kernel of tangents, evaluated block by block."""
+        return blockwise(kernel, (tau,), (1,))
+
     @classmethod
     def hat(cls, tau: ArrayLike) -> FloatArray:
         """``τ^``: tangent coordinates ``(..., dim)`` to the Lie algebra matrix."""
@@ -233,22 +238,22 @@ class LieGroup:
     @classmethod
     def jr(cls, tau: ArrayLike) -> FloatArray:
         """Right Jacobian: ``Exp(τ + δ) ≈ Exp(τ) Exp(Jr(τ) δ)`` (eqs. 67–68), ``(..., dim, dim)``."""
-        return cls._jr(cls._tangent(tau))
+        return cls._tangent_map(cls._jr, cls._tangent(tau))
 
     @classmethod
     def jl(cls, tau: ArrayLike) -> FloatArray:
         """Left Jacobian: ``Exp(τ + δ) ≈ Exp(Jl(τ) δ) Exp(τ)``; ``Jl(τ) = Jr(−τ)`` (eqs. 71–72, 76)."""
-        return cls._jr(-cls._tangent(tau))
+        return cls._tangent_map(cls._jr, -cls._tangent(tau))
 
     @classmethod
     def jr_inv(cls, tau: ArrayLike) -> FloatArray:
         """``Jr(τ)⁻¹`` in closed form."""
-        return cls._jr_inv(cls._tangent(tau))
+        return cls._tangent_map(cls._jr_inv, cls._tangent(tau))
 
     @classmethod
     def jl_inv(cls, tau: ArrayLike) -> FloatArray:
         """``Jl(τ)⁻¹ = Jr(−τ)⁻¹``."""
-        return cls._jr_inv(-cls._tangent(tau))
+        return cls._tangent_map(cls._jr_inv, -cls._tangent(tau))
 
     # ---- minimal API --------------------------------------------------------------
 
@@ -263,7 +268,7 @@ class LieGroup:
         """``Exp(τ) = exp(τ^)``, batch shape ``tau.shape[:-1]``; Jacobian ``Jr(τ)``."""
         t = cls._tangent(tau)
         x = cls._wrap(blockwise(cls._exp, (t,), (1,)))
-        return (x, cls._jr(t)) if jac else x
+        return (x, cls._tangent_map(cls._jr, t)) if jac else x
 
     @overload
     def log(self, jac: Literal[False] = ...) -> FloatArray: ...
@@ -272,7 +277,7 @@ class LieGroup:
     def log(self, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac]:
         """``Log(X)``, shape ``(..., dim)``; Jacobian ``Jr(Log X)⁻¹`` (eq. 79)."""
         tau = self._blocks(self._log, self._data)
-        return (tau, self._jr_inv(tau)) if jac else tau
+        return (tau, self._tangent_map(self._jr_inv, tau)) if jac else tau
 
     @overload
     def compose(self: G, other: G, jac: Literal[False] = ...) -> G: ...
@@ -331,7 +336,11 @@ class LieGroup:
             return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(self._data, e))
-        return y, _bcast(self._adjoint(self._inverse(e)), y.batch_shape), _bcast(self._jr(t), y.batch_shape)
+        return (
+            y,
+            _bcast(self._adjoint(self._inverse(e)), y.batch_shape),
+            _bcast(self._tangent_map(self._jr, t), y.batch_shape),
+        )
 
     @overload
     def rminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
@@ -344,7 +353,7 @@ class LieGroup:
         tau = self._blocks(lambda b, a: self._log(self._compose(self._inverse(a), b)), self._data, x)
         if not jac:
             return tau
-        return tau, self._jr_inv(tau), -self._jr_inv(-tau)
+        return tau, self._tangent_map(self._jr_inv, tau), -self._tangent_map(self._jr_inv, -tau)
 
     @overload
     def lplus(self: G, tau: ArrayLike, jac: Literal[False] = ...) -> G: ...
@@ -363,7 +372,7 @@ class LieGroup:
             return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(e, self._data))
-        return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(self._jr(-t), y.batch_shape)
+        return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(self._tangent_map(self._jr, -t), y.batch_shape)
 
     @overload
     def lminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
@@ -376,7 +385,7 @@ class LieGroup:
         tau = self._blocks(lambda b, a: self._log(self._compose(b, self._inverse(a))), self._data, x)
         if not jac:
             return tau
-        return tau, self._jr_inv(-tau), -self._jr_inv(tau)
+        return tau, self._tangent_map(self._jr_inv, -tau), -self._tangent_map(self._jr_inv, tau)
 
     @overload
     def between(self: G, other: G, jac: Literal[False] = ...) -> G: ...
