@@ -1,0 +1,21 @@
+"""Riemannian manifolds: the geometry optimizers need (CONVENTIONS §6)."""
+
+from .base import Manifold, MissingOperationError
+from .euclidean import Euclidean
+from .lie_group import LieGroupManifold
+from .product import Power, Product, ProductVector
+from .sphere import Sphere
+from .stiefel import SpecialOrthogonal, Stiefel
+
+__all__ = [
+    "Manifold",
+    "MissingOperationError",
+    "LieGroupManifold",
+    "Euclidean",
+    "Sphere",
+    "Stiefel",
+    "SpecialOrthogonal",
+    "Product",
+    "Power",
+    "ProductVector",
+]

@@ -1,0 +1,196 @@
+"""A Lie group of ``manopt_lie.lie`` as a Riemannian manifold (CONVENTIONS §6).
+
+Points are group elements (any batch shape: ``Power`` uses ``(n,)``); tangent
+vectors are Cartesian coordinates ``τ`` of shape ``(..., dim)`` with the
+left-invariant metric ``⟨τ₁, τ₂⟩ = τ₁ᵀτ₂``; the retraction is ``R_X(τ) = X ⊕ τ``.
+
+Derivatives come from the matrix embedding. With ``Eᵢ = hat(eᵢ)`` the
+generators and ``hat*(M)ᵢ = ⟨Eᵢ, M⟩_F`` the adjoint of ``hat``:
+
+* ambient form of ``τ``: ``X τ^``;
+* ``grad f(X) = hat*(Xᵀ∇f(X))`` — for SO(n) this is ``vee(RᵀG − GᵀR)``;
+* ``proj_X(U) = (hat*∘hat)⁻¹ hat*(XᵀU)``, the least-squares coordinates of ``U``;
+* ``Hess f(X)[v] = hat*(Xᵀ∇²f(X)[Xv^]) + ½ hat*(M v^ᵀ + v^ᵀ M)``, ``M = Xᵀ∇f(X)``:
+  the Hessian of the pullback ``τ ↦ f(X ⊕ τ)`` at 0 (its second term is the
+  curvature of ``τ ↦ X Exp(τ)``, ``∂²/∂τᵢ∂τⱼ = X(EᵢEⱼ + EⱼEᵢ)/2``).
+
+``geometry="product"`` treats SE(n) as SO(n) × Rⁿ (as Manopt and SymForce do):
+``R_{(R,t)}(ρ, θ) = (R Exp(θ), t + ρ)`` with the translation increment in the
+world frame; the formulas above then apply to the rotation block, and the
+translation block is Euclidean.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..errors import ShapeError
+from ..lie import SE2, SE3, LieGroup, RnGroup
+from ..lie._checks import FloatArray, as_batch
+from ..lie._matrix import assemble, split
+from .base import Manifold
+
+
+def _t(a: FloatArray) -> FloatArray:
+    return np.swapaxes(a, -1, -2)
+
+
+class _Algebra:
+    """``hat``, its adjoint ``hat*`` and the Gram matrix of the generators of a group."""
+
+    def __init__(self, group: type[LieGroup]) -> None:
+        self.hat = group.hat
+        self.basis = group.hat(np.eye(group.dim))  # (dim, k, k): the generators Eᵢ
+        self.gram_inv = np.linalg.inv(np.einsum("ijk,ljk->il", self.basis, self.basis))
+
+    def adjoint_hat(self, m: FloatArray) -> FloatArray:
+        """``hat*(M)ᵢ = ⟨Eᵢ, M⟩_F``."""
+        return np.einsum("...jk,ijk->...i", m, self.basis)
+
+    def coordinates(self, m: FloatArray) -> FloatArray:
+        """Least-squares coordinates of ``M`` in the generators: ``(hat*∘hat)⁻¹ hat*(M)``."""
+        return self.adjoint_hat(m) @ self.gram_inv
+
+    def grad_and_hess(self, m: FloatArray, h: FloatArray, v: FloatArray) -> FloatArray:
+        """``hat*(H) + ½ hat*(M v^ᵀ + v^ᵀ M)`` for ``M = XᵀG``, ``H = Xᵀ∇²f[·]``."""
+        vh = self.hat(v)
+        return self.adjoint_hat(h) + 0.5 * self.adjoint_hat(m @ _t(vh) + _t(vh) @ m)
+
+
+class LieGroupManifold(Manifold):
+    """The group ``G`` with the left-invariant metric in Cartesian tangent coordinates.
+
+    ``exp`` is the retraction ``X ⊕ τ`` and ``log(X, Y) = Y ⊖ X`` (the Riemannian
+    exponential and logarithm for SO(n), Rⁿ and the product geometry; for SE(n)
+    in the group geometry, the group's). ``transp`` is the identity on
+    coordinates.
+
+    Parameters
+    ----------
+    group : SO2, SO3, SE2, SE3 or Rn(n)
+    geometry : {"group", "product"}
+        ``"product"`` (SE2, SE3 only) uses SO(n) × Rⁿ: translation increments in
+        the world frame.
+    """
+
+    def __init__(self, group: type[LieGroup], geometry: str = "group") -> None:
+        if not (isinstance(group, type) and issubclass(group, LieGroup)):
+            raise TypeError(f"LieGroupManifold: expected a LieGroup class such as SO3, got {group!r}")
+        if geometry not in ("group", "product"):
+            raise ValueError(f"LieGroupManifold: geometry must be 'group' or 'product', got {geometry!r}")
+        if geometry == "product" and group not in (SE2, SE3):
+            raise ValueError("LieGroupManifold: the product geometry is for SE2 and SE3")
+        self.group = group
+        self.geometry = geometry
+        self._euclidean = issubclass(group, RnGroup)  # Rⁿ's ambient space is Rⁿ itself
+        self._algebra = _Algebra(group.rotation_group if geometry == "product" else group)  # type: ignore[attr-defined]
+
+    def __repr__(self) -> str:
+        extra = ", geometry='product'" if self.geometry == "product" else ""
+        return f"LieGroupManifold({self.group.__name__}{extra})"
+
+    @property
+    def dim(self) -> int:
+        return self.group.dim
+
+    def inner(self, x: LieGroup, u: FloatArray, v: FloatArray) -> Any:
+        return np.einsum("...i,...i->...", u, v)
+
+    def retr(self, x: LieGroup, v: FloatArray) -> LieGroup:
+        if self.geometry == "group":
+            return x.rplus(v)
+        r, t = x.rotation(), x.translation()  # type: ignore[attr-defined]
+        d = self.group.point_dim
+        return self.group._wrap(assemble(r.rplus(v[..., d:]).as_matrix(), t + v[..., :d]))
+
+    exp = retr
+
+    def log(self, x: LieGroup, y: LieGroup) -> FloatArray:
+        if self.geometry == "group":
+            return y.rminus(x)
+        rot = y.rotation().rminus(x.rotation())  # type: ignore[attr-defined]
+        return np.concatenate([y.translation() - x.translation(), rot], axis=-1)  # type: ignore[attr-defined]
+
+    def dist(self, x: LieGroup, y: LieGroup) -> Any:
+        return np.linalg.norm(self.log(x, y), axis=-1)
+
+    def transp(self, x: LieGroup, y: LieGroup, v: FloatArray) -> FloatArray:
+        return v
+
+    # ---- the matrix embedding ----------------------------------------------------
+
+    def _ambient(self, x: LieGroup, u: Any) -> FloatArray:
+        shape = (self.group.dim,) if self._euclidean else x.as_matrix().shape[-2:]
+        return as_batch(u, shape, "ambient vector")
+
+    def to_ambient(self, x: LieGroup, v: FloatArray) -> FloatArray:
+        """``X v^`` (product geometry: ``[[R θ^, ρ], [0, 0]]``; Rⁿ: ``v``)."""
+        if self._euclidean:
+            return v
+        if self.geometry == "group":
+            return x.as_matrix() @ self.group.hat(v)
+        d = self.group.point_dim
+        r, _ = split(x.as_matrix())
+        out = assemble(r @ self._algebra.hat(v[..., d:]), v[..., :d])
+        out[..., d, d] = 0.0
+        return out
+
+    def _split_rotation(self, m: FloatArray) -> tuple[FloatArray, FloatArray]:
+        d = self.group.point_dim
+        return m[..., :d, :d], m[..., :d, d]
+
+    def proj(self, x: LieGroup, u: Any) -> FloatArray:
+        a = self._ambient(x, u)
+        if self._euclidean:
+            return a
+        if self.geometry == "group":
+            return self._algebra.coordinates(_t(x.as_matrix()) @ a)
+        r, _ = split(x.as_matrix())
+        a_r, a_t = self._split_rotation(a)
+        return np.concatenate([a_t, self._algebra.coordinates(_t(r) @ a_r)], axis=-1)
+
+    def egrad2rgrad(self, x: LieGroup, egrad: Any) -> FloatArray:
+        g = self._ambient(x, egrad)
+        if self._euclidean:
+            return g
+        if self.geometry == "group":
+            return self._algebra.adjoint_hat(_t(x.as_matrix()) @ g)
+        r, _ = split(x.as_matrix())
+        g_r, g_t = self._split_rotation(g)
+        return np.concatenate([g_t, self._algebra.adjoint_hat(_t(r) @ g_r)], axis=-1)
+
+    def ehess2rhess(self, x: LieGroup, egrad: Any, ehess: Any, v: FloatArray) -> FloatArray:
+        g, h = self._ambient(x, egrad), self._ambient(x, ehess)
+        if self._euclidean:
+            return h
+        if self.geometry == "group":
+            xt = _t(x.as_matrix())
+            return self._algebra.grad_and_hess(xt @ g, xt @ h, v)
+        rt = _t(split(x.as_matrix())[0])
+        (g_r, _), (h_r, h_t) = self._split_rotation(g), self._split_rotation(h)
+        d = self.group.point_dim
+        return np.concatenate([h_t, self._algebra.grad_and_hess(rt @ g_r, rt @ h_r, v[..., d:])], axis=-1)
+
+    # ---- points and tangents -----------------------------------------------------
+
+    def _random_point(self, rng: np.random.Generator, batch: tuple[int, ...]) -> LieGroup:
+        return self.group.random(rng, batch)
+
+    def random_tangent(self, x: LieGroup, rng: np.random.Generator | int | None = None) -> FloatArray:
+        v = np.random.default_rng(rng).standard_normal(x.batch_shape + (self.dim,))
+        return self.unit(x, v)
+
+    def zero_vector(self, x: LieGroup) -> FloatArray:
+        return np.zeros(x.batch_shape + (self.dim,))
+
+    def check_point(self, x: Any, name: str = "x") -> None:
+        if not isinstance(x, self.group):
+            raise ShapeError(
+                f"{name}: a point of {self!r} is a {self.group.__name__} element "
+                f"(e.g. {self.group.__name__}.from_matrix(...)), got {type(x).__name__}"
+            )
+
+    def batch_shape_of(self, x: LieGroup) -> tuple[int, ...]:
+        return x.batch_shape
