@@ -7,7 +7,7 @@ Lie groups with exact, batched calculus (CONVENTIONS.md §1–5)::
     Y, J_X, J_tau = X.rplus(d, jac=True)
 """
 
-from .errors import IndefiniteMatrixError, NonFiniteError, NotInGroupError, ShapeError
+from .errors import IndefiniteMatrixError, NonFiniteError, NotInGroupError, NotOnManifoldError, ShapeError
 from .lie import (
     SE2,
     SE3,
@@ -38,6 +38,7 @@ __all__ = [
     "left_to_right_covariance",
     "ShapeError",
     "NonFiniteError",
+    "NotOnManifoldError",
     "NotInGroupError",
     "IndefiniteMatrixError",
 ]

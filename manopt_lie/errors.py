@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["ShapeError", "NonFiniteError", "NotInGroupError", "IndefiniteMatrixError"]
+__all__ = ["ShapeError", "NonFiniteError", "NotOnManifoldError", "NotInGroupError", "IndefiniteMatrixError"]
 
 
 class ShapeError(ValueError):
@@ -17,7 +17,11 @@ class NonFiniteError(ValueError):
     """An input holds ``nan`` or ``inf``."""
 
 
-class NotInGroupError(ValueError):
+class NotOnManifoldError(ValueError):
+    """A point violates a manifold's constraint (``‖x‖ = 1``, ``XᵀX = I``, …)."""
+
+
+class NotInGroupError(NotOnManifoldError):
     """A matrix is not an element of the group (not orthonormal, a reflection,
     or a homogeneous matrix whose last row is not ``[0, ..., 0, 1]``)."""
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import NotInGroupError
+from ..errors import NotOnManifoldError
 from ..lie._checks import FloatArray, as_batch
 from .base import Manifold
 
@@ -50,9 +50,9 @@ class EmbeddedManifold(Manifold):
         return as_batch(x, self.point_shape, name)
 
     def _require(self, err: FloatArray, tol: float, name: str, what: str) -> None:
-        """Raise :class:`NotInGroupError` where a per-point constraint error exceeds ``tol``."""
+        """Raise :class:`NotOnManifoldError` where a per-point constraint error exceeds ``tol``."""
         if np.any(err > tol):
-            raise NotInGroupError(f"{name}: not a point of {self!r} ({what} off by {np.max(err):.3g} > {tol:g})")
+            raise NotOnManifoldError(f"{name}: not a point of {self!r} ({what} off by {np.max(err):.3g} > {tol:g})")
 
     def check_point(self, x: Any, name: str = "x") -> None:
         self._checked_array(x, name)

@@ -130,13 +130,13 @@ class Power(Manifold):
     """
 
     def __init__(self, manifold: Manifold, k: int | tuple[int, ...]) -> None:
-        shape = (k,) if isinstance(k, (int, np.integer)) else tuple(k)
-        if not shape or any(int(n) < 1 for n in shape):
+        shape = tuple(int(n) for n in ((k,) if isinstance(k, (int, np.integer)) else k))
+        if not shape or min(shape) < 1:
             raise ValueError(f"Power: k must be a positive integer or shape, got {k!r}")
         if isinstance(manifold, Power):  # (Mᵃ)ᵇ = M^(b, a)
-            shape, manifold = tuple(map(int, shape)) + manifold.shape, manifold.manifold
-        self.manifold = manifold
-        self.shape = tuple(int(n) for n in shape)
+            shape, manifold = shape + manifold.shape, manifold.manifold
+        self.manifold: Manifold = manifold
+        self.shape: tuple[int, ...] = shape
         self.tangent_ndim = manifold.tangent_ndim + len(self.shape)
 
     def __repr__(self) -> str:

@@ -76,7 +76,7 @@ class Stiefel(EmbeddedManifold):
     def exp(self, x: FloatArray, v: FloatArray) -> FloatArray:
         """Geodesic of the embedded metric (Edelman, Arias, Smith 1998, eq. 2.45)::
 
-            Exp_X(V) = [X, V] · expm([[A, −S], [I, A]])[:, :p] · expm(−A),  A = XᵀV, S = VᵀV.
+        Exp_X(V) = [X, V] · expm([[A, −S], [I, A]])[:, :p] · expm(−A),  A = XᵀV, S = VᵀV.
         """
         p = self.point_shape[1]
         a, s = _t(x) @ v, _t(v) @ v
