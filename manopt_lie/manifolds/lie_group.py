@@ -141,25 +141,21 @@ class LieGroupManifold(Manifold):
         d = self.group.point_dim
         return m[..., :d, :d], m[..., :d, d]
 
-    def proj(self, x: LieGroup, u: Any) -> FloatArray:
-        a = self._ambient(x, u)
+    def _pull_back(self, x: LieGroup, a: FloatArray, to_coordinates: Any) -> FloatArray:
+        """``to_coordinates(Xᵀ A)`` (product geometry: ``(A_t, to_coordinates(Rᵀ A_R))``)."""
         if self._euclidean:
             return a
         if self.geometry == "group":
-            return self._algebra.coordinates(_t(x.as_matrix()) @ a)
+            return to_coordinates(_t(x.as_matrix()) @ a)
         r, _ = split(x.as_matrix())
         a_r, a_t = self._split_rotation(a)
-        return np.concatenate([a_t, self._algebra.coordinates(_t(r) @ a_r)], axis=-1)
+        return np.concatenate([a_t, to_coordinates(_t(r) @ a_r)], axis=-1)
+
+    def proj(self, x: LieGroup, u: Any) -> FloatArray:
+        return self._pull_back(x, self._ambient(x, u), self._algebra.coordinates)
 
     def egrad2rgrad(self, x: LieGroup, egrad: Any) -> FloatArray:
-        g = self._ambient(x, egrad)
-        if self._euclidean:
-            return g
-        if self.geometry == "group":
-            return self._algebra.adjoint_hat(_t(x.as_matrix()) @ g)
-        r, _ = split(x.as_matrix())
-        g_r, g_t = self._split_rotation(g)
-        return np.concatenate([g_t, self._algebra.adjoint_hat(_t(r) @ g_r)], axis=-1)
+        return self._pull_back(x, self._ambient(x, egrad), self._algebra.adjoint_hat)
 
     def ehess2rhess(self, x: LieGroup, egrad: Any, ehess: Any, v: FloatArray) -> FloatArray:
         g, h = self._ambient(x, egrad), self._ambient(x, ehess)
