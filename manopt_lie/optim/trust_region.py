@@ -1,0 +1,163 @@
+"""Riemannian trust region with truncated conjugate gradients (Absil, Baker, Gallivan 2007)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .optimizer import Optimizer, Run
+from .result import OptimizeResult, Status
+
+Preconditioner = Callable[[Any, Any], Any]
+
+
+@dataclass(frozen=True)
+class _InnerResult:
+    eta: Any
+    h_eta: Any
+    iterations: int
+    reason: str  # "residual", "negative curvature", "boundary" or "max iterations"
+
+
+class TrustRegion(Optimizer):
+    """Minimize the model ``m(η) = f + ⟨g, η⟩ + ½⟨η, H[η]⟩`` over ``‖η‖ ≤ Δ`` by truncated CG
+    (Steihaug–Toint), accept ``R_x(η)`` when ``ρ = (f(x) − f(R_x(η)))/(m(0) − m(η)) > rho_prime``,
+    and adapt ``Δ``: ×¼ when ``ρ < ¼``, ×2 (at most ``Δ̄``) when ``ρ > ¾`` on the boundary.
+
+    ``H`` is the problem's Hessian when it has one, otherwise the finite difference
+    ``H[v] ≈ (T_{y→x} grad f(y) − grad f(x))/t`` with ``y = R_x(t v)``,
+    ``t = fd_step/‖v‖`` (as Manopt does), so a cost with a gradient suffices.
+    The inner iteration stops at ``‖r_j‖ ≤ ‖r_0‖ min(‖r_0‖^θ, κ)`` (superlinear
+    local convergence for ``θ = 1``), on negative curvature or at the boundary.
+
+    Parameters
+    ----------
+    max_radius : float, optional
+        ``Δ̄``; the manifold's ``typical_dist`` by default. The initial radius is ``Δ̄/8``.
+    rho_prime : float
+        Acceptance threshold, in ``[0, ¼)``.
+    kappa, theta : float
+        Inner stopping parameters.
+    max_inner_iterations : int, optional
+        Default: the manifold's dimension.
+    preconditioner : callable ``(x, r) ↦ z``, optional
+        A symmetric positive definite operator on tangent vectors approximating ``H⁻¹``.
+    fd_step : float
+        The finite-difference step, relative to ``‖v‖``.
+    """
+
+    def __init__(
+        self,
+        *,
+        max_radius: float | None = None,
+        initial_radius: float | None = None,
+        rho_prime: float = 0.1,
+        kappa: float = 0.1,
+        theta: float = 1.0,
+        max_inner_iterations: int | None = None,
+        preconditioner: Preconditioner | None = None,
+        fd_step: float = 2.0**-14,
+        **stopping: Any,
+    ) -> None:
+        super().__init__(**stopping)
+        if not 0 <= rho_prime < 0.25:
+            raise ValueError(f"TrustRegion: rho_prime must be in [0, 1/4), got {rho_prime}")
+        self.max_radius, self.initial_radius = max_radius, initial_radius
+        self.rho_prime, self.kappa, self.theta = rho_prime, kappa, theta
+        self.max_inner_iterations, self.preconditioner, self.fd_step = max_inner_iterations, preconditioner, fd_step
+
+    # ---- the model's Hessian ------------------------------------------------------
+
+    def _hessian(self, run: Run, x: Any, g: Any) -> Callable[[Any], Any]:
+        if run.problem.has_hessian:
+            return lambda v: run.hess(x, v)
+        m = run.manifold
+
+        def finite_difference(v: Any) -> Any:
+            v_norm = run.norm(x, v)
+            if v_norm == 0.0:
+                return m.zero_vector(x)
+            t = self.fd_step / v_norm
+            y = m.retr(x, v * t)
+            return (m.transp(y, x, run.grad(y)) - g) * (1.0 / t)
+
+        return finite_difference
+
+    # ---- truncated CG -------------------------------------------------------------
+
+    def _tcg(self, run: Run, x: Any, g: Any, hess: Callable[[Any], Any], radius: float) -> _InnerResult:
+        """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region."""
+        m = run.manifold
+        precon = self.preconditioner or (lambda _x, r: r)
+        max_inner = self.max_inner_iterations or max(1, m.dim)
+        eta, h_eta = m.zero_vector(x), m.zero_vector(x)
+        r = g
+        z = precon(x, r)
+        d = -z
+        rz = run.inner(x, r, z)
+        r0_norm = run.norm(x, r)
+        target = r0_norm * min(r0_norm**self.theta, self.kappa)
+        e_pe, e_pd, d_pd = 0.0, 0.0, rz  # ⟨η, Pη⟩, ⟨η, Pd⟩, ⟨d, Pd⟩ in the preconditioner's norm
+        for j in range(1, max_inner + 1):
+            hd = hess(d)
+            d_hd = run.inner(x, d, hd)
+            alpha = rz / d_hd if d_hd != 0 else math.inf
+            e_pe_new = e_pe + 2.0 * alpha * e_pd + alpha**2 * d_pd
+            if d_hd <= 0 or e_pe_new >= radius**2:
+                # Follow d to the boundary: ‖η + τ d‖ = Δ.
+                tau = (-e_pd + math.sqrt(e_pd**2 + d_pd * (radius**2 - e_pe))) / d_pd
+                reason = "negative curvature" if d_hd <= 0 else "boundary"
+                return _InnerResult(eta + d * tau, h_eta + hd * tau, j, reason)
+            eta, h_eta, e_pe = eta + d * alpha, h_eta + hd * alpha, e_pe_new
+            r = r + hd * alpha
+            if run.norm(x, r) <= target:
+                return _InnerResult(eta, h_eta, j, "residual")
+            z = precon(x, r)
+            rz, rz_old = run.inner(x, r, z), rz
+            beta = rz / rz_old
+            e_pd = beta * (e_pd + alpha * d_pd)
+            d_pd = rz + beta**2 * d_pd
+            d = -z + d * beta
+        return _InnerResult(eta, h_eta, max_inner, "max iterations")
+
+    # ---- outer iteration ----------------------------------------------------------
+
+    def _solve(self, run: Run, x0: Any) -> OptimizeResult:
+        m = run.manifold
+        max_radius = self.max_radius or m.typical_dist
+        radius = self.initial_radius or max_radius / 8.0
+        x, f = x0, run.cost(x0)
+        g = run.grad(x)
+        g_norm = run.norm(x, g)
+        status = Status.CALLBACK if run.record(x, f, g_norm, radius=radius) else run.stop_reason()
+        while status is None:
+            inner = self._tcg(run, x, g, self._hessian(run, x, g), radius)
+            x_new = m.retr(x, inner.eta)
+            f_new = run.cost(x_new)
+            model_decrease = -(run.inner(x, g, inner.eta) + 0.5 * run.inner(x, inner.eta, inner.h_eta))
+            # Regularized ratio: near convergence both decreases drown in round-off.
+            reg = max(1.0, abs(f)) * np.finfo(float).eps * 1e3
+            rho = (f - f_new + reg) / (model_decrease + reg)
+            eta_norm = run.norm(x, inner.eta)
+            if rho < 0.25:
+                radius /= 4.0
+            elif rho > 0.75 and inner.reason in ("negative curvature", "boundary"):
+                radius = min(2.0 * radius, max_radius)
+            accepted = rho > self.rho_prime and model_decrease > 0
+            f_prev = f
+            if accepted:
+                x, f = x_new, f_new
+                g = run.grad(x)
+                g_norm = run.norm(x, g)
+            stop = run.record(
+                x, f, g_norm, eta_norm if accepted else math.nan,  # nan: no step was taken
+                radius=radius, rho=rho, inner_iterations=inner.iterations, accepted=float(accepted),
+            )  # fmt: skip
+            status = Status.CALLBACK if stop else run.stop_reason(f_prev if accepted else None)
+            if status is None and radius < self.stopping.min_step:
+                status = Status.STEP_SIZE
+        return run.result(x, status)
