@@ -2,6 +2,8 @@
 
 from .conjugate_gradient import ConjugateGradient
 from .gradient_descent import GradientDescent
+from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
+from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt, NonlinearLeastSquares
 from .optimizer import Optimizer, StoppingCriteria
 from .problem import Problem
 from .result import History, IterationInfo, OptimizeResult, Status
@@ -9,11 +11,17 @@ from .trust_region import TrustRegion
 
 __all__ = [
     "Problem",
+    "LeastSquaresProblem",
+    "Factor",
+    "Linearization",
     "Optimizer",
     "StoppingCriteria",
     "GradientDescent",
     "ConjugateGradient",
     "TrustRegion",
+    "GaussNewton",
+    "LevenbergMarquardt",
+    "NonlinearLeastSquares",
     "OptimizeResult",
     "Status",
     "History",

@@ -1,0 +1,519 @@
+"""Riemannian optimizers on three problems with known optima, against pymanopt.
+
+Run from the repository root::
+
+    python benchmarks/bench_optimizers.py                 # full sizes
+    python benchmarks/bench_optimizers.py --quick         # small sizes, one repeat (smoke run)
+    python benchmarks/bench_optimizers.py --json out.json
+
+Problems (each from one fixed starting point, shared by every optimizer):
+
+* **karcher**: ``½ Σᵢ |Rᵢ ⊖ R|²`` over 10⁵ rotations ``R̄ Exp(±τₖ)`` on
+  ``LieGroupManifold(SO3)``; symmetric about ``R̄``, so the optimum is
+  ``½ Σ |τᵢ|²`` at ``R̄``. Gradient ``Σ J_Rᵀ rᵢ`` from ``rminus(jac=True)``; no
+  Hessian (the trust region differentiates the gradient numerically).
+* **rayleigh**: ``xᵀAx`` on ``Sphere(1000)`` (S⁹⁹⁹), ``A`` random symmetric;
+  optimum ``λ_min(A)``.
+* **brockett**: ``tr(XᵀAXN)`` on ``Stiefel(1000, 5)``, ``N = diag(5, …, 1)``;
+  optimum ``Σ N_ii λ_i`` (ascending eigenvalues).
+
+Every run stops on the same test: the Riemannian gradient norm at most
+``1e-6 × ‖grad f(x₀)‖`` (``grad_rtol=1e-6, grad_atol=0``; pymanopt gets
+``min_gradient_norm = 1e-6 × ‖grad f(x₀)‖`` in its own metric, which on SO(3)
+is the Frobenius norm of the skew matrix, √2 times ours, so the relative test
+is the same), or the shared iteration and time caps. The time is the median of
+``--repeat`` runs; ``grad_norm`` is always measured in our metric, at the final
+point, so both libraries' columns compare.
+
+Both libraries also share ``min_step = 1e-12`` (pymanopt's ``min_step_size``);
+pymanopt's cap on cost evaluations is lifted, since ours has none.
+
+pymanopt (numpy backend, hand-written derivatives) runs in the same process
+when it is installed; otherwise its rows are skipped with a note. Its
+optimizers: ``SteepestDescent``, ``ConjugateGradient(beta_rule="PolakRibiere")``
+(our default rule is PR+ too) and ``TrustRegions``, with default line searches
+and radii. On SO(3) it uses the polar retraction and a plain-NumPy residual
+``Log(RᵀRᵢ)``; its gradient is ``−Σ rᵢ``, which equals ``Σ J_Rᵀ rᵢ`` (since
+``Jl(r)⁻ᵀ r = r``) without forming the Jacobians, and its trust region gets
+the same finite-difference Hessian as ours (pymanopt's numpy backend has none
+built in). The last table gives the cost of one evaluation in each library, to
+tell the optimizers' overhead from that of the cost functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from manopt_lie import SO3
+from manopt_lie.manifolds import LieGroupManifold, Sphere, Stiefel
+from manopt_lie.optim import ConjugateGradient, GradientDescent, OptimizeResult, Problem, TrustRegion
+
+GRAD_RTOL = 1e-6
+MIN_STEP = 1e-12
+FD_STEP = 2.0**-14  # the finite-difference step of our TrustRegion, reused for pymanopt's Karcher Hessian
+
+OURS: dict[str, Callable[..., Any]] = {"gd": GradientDescent, "cg": ConjugateGradient, "tr": TrustRegion}
+
+
+# ---- the problems -----------------------------------------------------------------
+
+
+Counts = dict[str, int]
+"""Evaluation counters of a pymanopt problem (``nfev``, ``ngev``, ``nhev``): pymanopt's own
+``cost_evaluations`` counts iterations for its line-search methods."""
+
+
+@dataclass
+class Case:
+    """One problem: our formulation, its start, its known optimum and a pymanopt twin."""
+
+    name: str
+    title: str
+    problem: Problem
+    x0: Any
+    optimum: float
+    make_pymanopt: Callable[[Any, Counts], tuple[Any, Any]]  # (pymanopt module, counters) ↦ (problem, x0)
+    from_pymanopt: Callable[[Any], Any]  # a pymanopt point ↦ ours
+
+
+def _symmetric(rng: np.random.Generator, n: int) -> np.ndarray:
+    a = rng.standard_normal((n, n))
+    return (a + a.T) / 2
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def karcher_case(n: int, rng: np.random.Generator) -> Case:
+    mean = SO3.random(rng)
+    tau = 0.3 * rng.standard_normal((n // 2, 3))
+    tau = np.concatenate([tau, -tau])  # symmetric about the mean: R̄ is the Karcher mean
+    samples = mean.rplus(tau)
+    assert np.linalg.norm(tau, axis=-1).max() < np.pi  # so that Log(R̄ᵀRᵢ) = τᵢ exactly
+
+    def cost(r: SO3) -> float:
+        return 0.5 * float(np.sum(samples.rminus(r) ** 2))
+
+    def grad(r: SO3) -> np.ndarray:
+        res, _, j_r = samples.rminus(r, jac=True)
+        return np.einsum("kji,kj->i", j_r, res)  # Σ J_Rᵀ rᵢ
+
+    x0 = mean.rplus(np.array([0.6, -0.5, 0.4]))
+    problem = Problem(LieGroupManifold(SO3), cost=cost, rgrad=grad)
+    mats = samples.as_matrix()
+
+    def make_pymanopt(pymanopt: Any, counts: Counts) -> tuple[Any, Any]:
+        # pymanopt's SO(3): points are matrices, tangent vectors skew matrices Ω (the
+        # direction R·Ω) with ⟨Ω₁, Ω₂⟩ = tr(Ω₁ᵀΩ₂) = 2 ω₁ᵀω₂. The residuals are written in
+        # plain NumPy (rotation-matrix log through atan2), as a pymanopt user would.
+        manifold = pymanopt.manifolds.SpecialOrthogonalGroup(3, retraction="polar")
+
+        def residuals(r: np.ndarray) -> np.ndarray:
+            m = np.matmul(r.T, mats)  # Rᵀ Rᵢ
+            w = 0.5 * np.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], -1)
+            s = np.linalg.norm(w, axis=-1)
+            angle = np.arctan2(s, 0.5 * (np.trace(m, axis1=1, axis2=2) - 1.0))
+            return w * np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)[:, None]
+
+        def rgrad_skew(r: np.ndarray) -> np.ndarray:
+            counts["ngev"] += 1
+            # d/dt ½|Log(Exp(−tω)RᵀRᵢ)|² = −rᵢᵀ Jl(rᵢ)⁻¹ ω = −rᵢᵀω, so the coordinate
+            # gradient is −Σ rᵢ; halve it for the Frobenius metric of skew matrices.
+            return _skew(-0.5 * residuals(r).sum(axis=0))
+
+        @pymanopt.function.numpy(manifold)
+        def p_cost(r: np.ndarray) -> float:
+            counts["nfev"] += 1
+            return 0.5 * float(np.sum(residuals(r) ** 2))
+
+        cache: dict[bytes, np.ndarray] = {}
+
+        def cached_grad(r: np.ndarray) -> np.ndarray:
+            # One entry: the trust region's Hessian products reuse the gradient at r,
+            # as ours do.
+            key = r.tobytes()
+            if key not in cache:
+                cache.clear()
+                cache[key] = rgrad_skew(r)
+            return cache[key]
+
+        @pymanopt.function.numpy(manifold)
+        def p_grad(r: np.ndarray) -> np.ndarray:
+            return cached_grad(r)
+
+        @pymanopt.function.numpy(manifold)
+        def p_hess(r: np.ndarray, omega: np.ndarray) -> np.ndarray:
+            # The difference quotient of the gradient along the retraction, as our
+            # TrustRegion does without a Hessian.
+            norm = manifold.norm(r, omega)
+            if norm == 0.0:
+                return np.zeros((3, 3))
+            t = FD_STEP / norm
+            return (rgrad_skew(manifold.retraction(r, t * omega)) - cached_grad(r)) / t
+
+        p = pymanopt.Problem(manifold, p_cost, riemannian_gradient=p_grad, riemannian_hessian=p_hess)
+        return p, x0.as_matrix().copy()
+
+    return Case(
+        "karcher", f"Karcher mean, SO(3), {n:,} rotations", problem, x0, 0.5 * float(np.sum(tau**2)),
+        make_pymanopt, lambda r: SO3.from_matrix(r),
+    )  # fmt: skip
+
+
+def rayleigh_case(n: int, rng: np.random.Generator) -> Case:
+    a = _symmetric(rng, n)
+    problem = Problem(Sphere(n), cost=lambda x: x @ a @ x, egrad=lambda x: 2 * a @ x, ehess=lambda x, u: 2 * a @ u)
+    x0 = problem.manifold.random_point(rng)
+
+    def make_pymanopt(pymanopt: Any, counts: Counts) -> tuple[Any, Any]:
+        manifold = pymanopt.manifolds.Sphere(n)
+
+        @pymanopt.function.numpy(manifold)
+        def cost(x: np.ndarray) -> float:
+            counts["nfev"] += 1
+            return float(x @ a @ x)
+
+        @pymanopt.function.numpy(manifold)
+        def egrad(x: np.ndarray) -> np.ndarray:
+            counts["ngev"] += 1
+            return 2 * a @ x
+
+        @pymanopt.function.numpy(manifold)
+        def ehess(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+            counts["nhev"] += 1
+            return 2 * a @ u
+
+        return pymanopt.Problem(manifold, cost, euclidean_gradient=egrad, euclidean_hessian=ehess), x0.copy()
+
+    return Case(
+        "rayleigh", f"Rayleigh quotient, S^{n - 1}", problem, x0, float(np.linalg.eigvalsh(a)[0]),
+        make_pymanopt, lambda x: x,
+    )  # fmt: skip
+
+
+def brockett_case(n: int, p: int, rng: np.random.Generator) -> Case:
+    a = _symmetric(rng, n)
+    big_n = np.diag(np.arange(p, 0, -1.0))
+    problem = Problem(
+        Stiefel(n, p), cost=lambda x: np.trace(x.T @ a @ x @ big_n),
+        egrad=lambda x: 2 * a @ x @ big_n, ehess=lambda x, u: 2 * a @ u @ big_n,
+    )  # fmt: skip
+    x0 = problem.manifold.random_point(rng)
+    optimum = float(np.sum(np.linalg.eigvalsh(a)[:p] * np.diag(big_n)))
+
+    def make_pymanopt(pymanopt: Any, counts: Counts) -> tuple[Any, Any]:
+        manifold = pymanopt.manifolds.Stiefel(n, p)
+
+        @pymanopt.function.numpy(manifold)
+        def cost(x: np.ndarray) -> float:
+            counts["nfev"] += 1
+            return float(np.trace(x.T @ a @ x @ big_n))
+
+        @pymanopt.function.numpy(manifold)
+        def egrad(x: np.ndarray) -> np.ndarray:
+            counts["ngev"] += 1
+            return 2 * a @ x @ big_n
+
+        @pymanopt.function.numpy(manifold)
+        def ehess(x: np.ndarray, u: np.ndarray) -> np.ndarray:
+            counts["nhev"] += 1
+            return 2 * a @ u @ big_n
+
+        return pymanopt.Problem(manifold, cost, euclidean_gradient=egrad, euclidean_hessian=ehess), x0.copy()
+
+    return Case("brockett", f"Brockett, St({n}, {p})", problem, x0, optimum, make_pymanopt, lambda x: x)
+
+
+# ---- running ----------------------------------------------------------------------
+
+
+def median_time(run: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    """Median wall time of ``repeat`` calls and the last call's result."""
+    times, out = [], None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        out = run()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), out
+
+
+@dataclass
+class Timed:
+    """A run to time repeatedly, and how to turn its median time and last result into a row."""
+
+    run: Callable[[], Any]
+    row: Callable[[float, Any], dict[str, Any]]
+
+
+def time_interleaved(jobs: list[Timed], repeat: int) -> list[dict[str, Any]]:
+    """Time the jobs in turn, ``repeat`` rounds (so that other load on the machine hits all
+    of them alike), and return their rows. A job that raises is reported, not fatal."""
+    times: list[list[float]] = [[] for _ in jobs]
+    last: list[Any] = [None] * len(jobs)
+    failed: dict[int, str] = {}
+    for _ in range(repeat):
+        for i, job in enumerate(jobs):
+            if i in failed:
+                continue
+            start = time.perf_counter()
+            try:
+                last[i] = job.run()
+            except Exception as exc:  # a failing competitor is reported, not fatal
+                failed[i] = f"error: {type(exc).__name__}: {exc}"[:120]
+                continue
+            times[i].append(time.perf_counter() - start)
+    rows = []
+    for i, job in enumerate(jobs):
+        try:
+            rows.append({"status": failed[i]} if i in failed else job.row(statistics.median(times[i]), last[i]))
+        except Exception as exc:
+            rows.append({"status": f"error: {type(exc).__name__}: {exc}"[:120]})
+    return rows
+
+
+def our_grad_norm(case: Case, x: Any) -> float:
+    m = case.problem.manifold
+    g = case.problem.grad(x)
+    return float(np.sqrt(np.sum(m.inner(x, g, g))))
+
+
+def ours_job(case: Case, key: str, args: argparse.Namespace) -> Timed:
+    opt = OURS[key](
+        max_iterations=args.max_iterations, max_time=args.max_time,
+        grad_rtol=GRAD_RTOL, grad_atol=0.0, min_step=MIN_STEP,
+    )  # fmt: skip
+
+    def row(seconds: float, res: OptimizeResult) -> dict[str, Any]:
+        return {
+            "nit": res.nit, "nfev": res.nfev, "ngev": res.ngev, "nhev": res.nhev, "time_s": seconds,
+            "fun": res.fun, "optimum": case.optimum, "gap": res.fun - case.optimum,
+            "grad_norm": res.grad_norm, "grad_tol": GRAD_RTOL * res.history.grad_norm[0],
+            "status": res.status.name.lower(),
+        }  # fmt: skip
+
+    return Timed(lambda: opt.solve(case.problem, case.x0), row)
+
+
+def _pymanopt_status(text: str) -> str:
+    for needle, label in (
+        ("grad norm", "gradient_norm"), ("max iterations", "max_iterations"), ("max time", "max_time"),
+        ("step_size", "step_size"), ("cost evals", "max_cost_evaluations"),
+    ):  # fmt: skip
+        if needle in text:
+            return label
+    return text
+
+
+def pymanopt_job(pymanopt: Any, case: Case, key: str, args: argparse.Namespace) -> Timed:
+    counts = {"nfev": 0, "ngev": 0, "nhev": 0}
+    problem, x0 = case.make_pymanopt(pymanopt, counts)
+    g0 = problem.manifold.norm(x0, problem.riemannian_gradient(x0))
+    settings = {
+        "max_iterations": args.max_iterations, "max_time": args.max_time,
+        "min_gradient_norm": GRAD_RTOL * g0, "min_step_size": MIN_STEP,
+        "max_cost_evaluations": 10**12, "verbosity": 0, "log_verbosity": 0,
+    }  # fmt: skip
+    opts = pymanopt.optimizers
+    opt = {
+        "gd": lambda: opts.SteepestDescent(**settings),
+        "cg": lambda: opts.ConjugateGradient(beta_rule="PolakRibiere", **settings),
+        "tr": lambda: opts.TrustRegions(**settings),
+    }[key]()
+
+    def run() -> Any:
+        counts.update(nfev=0, ngev=0, nhev=0)
+        res = opt.run(problem, initial_point=x0)
+        return res, dict(counts)
+
+    def row(seconds: float, out: Any) -> dict[str, Any]:
+        res, evaluations = out
+        x = case.from_pymanopt(res.point)
+        # Steps taken: pymanopt's CG counts the initial point as iteration 1; its steepest
+        # descent tests the gradient *before* each step, so it takes one step past the test.
+        nit = res.iterations - (1 if key == "cg" else 0)
+        fun = case.problem.cost(x)
+        return {
+            "nit": nit, **evaluations, "time_s": seconds, "fun": fun, "optimum": case.optimum,
+            "gap": fun - case.optimum, "grad_norm": our_grad_norm(case, x),
+            "status": _pymanopt_status(res.stopping_criterion),
+        }  # fmt: skip
+
+    return Timed(run, row)
+
+
+def run_case(case: Case, key: str, pymanopt: Any, args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Rows for our optimizer ``key`` on ``case`` and, when available, pymanopt's."""
+    jobs, libraries = [ours_job(case, key, args)], ["manopt_lie"]
+    failed: dict[str, Any] | None = None
+    if pymanopt is not None:
+        try:
+            jobs.append(pymanopt_job(pymanopt, case, key, args))
+            libraries.append("pymanopt")
+        except Exception as exc:  # setting pymanopt up failed: report it
+            failed = {"library": "pymanopt", "status": f"error: {type(exc).__name__}: {exc}"[:120]}
+    rows = [
+        {"problem": case.name, "optimizer": key, "library": lib, **row}
+        for lib, row in zip(libraries, time_interleaved(jobs, args.repeat), strict=True)
+    ]
+    if failed is not None:
+        rows.append({"problem": case.name, "optimizer": key, **failed})
+    return rows
+
+
+def evaluation_costs(case: Case, pymanopt: Any, repeat: int) -> dict[str, Any]:
+    """Milliseconds per cost and per gradient evaluation at ``x0`` (what an iteration is made of)."""
+    row: dict[str, Any] = {"problem": case.name}
+    row["ours_cost_ms"] = 1e3 * median_time(lambda: case.problem.cost(case.x0), repeat)[0]
+    row["ours_grad_ms"] = 1e3 * median_time(lambda: case.problem.grad(case.x0), repeat)[0]
+    if pymanopt is None:
+        return row
+
+    def fresh() -> tuple[Any, Any]:  # a new problem: the Karcher twin caches its last gradient
+        return case.make_pymanopt(pymanopt, {"nfev": 0, "ngev": 0, "nhev": 0})
+
+    try:
+        problem, x0 = fresh()
+        build = median_time(fresh, repeat)[0]
+        row["pymanopt_cost_ms"] = 1e3 * median_time(lambda: problem.cost(x0), repeat)[0]
+        with_build = median_time(lambda: fresh()[0].riemannian_gradient(x0), repeat)[0]
+        row["pymanopt_grad_ms"] = 1e3 * max(with_build - build, 0.0)
+    except Exception:  # shown as missing columns
+        pass
+    return row
+
+
+# ---- output -----------------------------------------------------------------------
+
+
+def _cell(value: Any, fmt: str) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float) and math.isnan(value):
+        return "nan"
+    return format(value, fmt)
+
+
+def print_table(title: str, rows: list[dict[str, Any]], fmt: dict[str, str]) -> None:
+    keys = list(dict.fromkeys(k for row in rows for k in row))
+    cells = [[_cell(row.get(k), fmt.get(k, "")) for k in keys] for row in rows]
+    try:
+        from rich.console import Console
+        from rich.table import Table
+    except ImportError:
+        widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
+        print(f"\n{title}")
+        print("  ".join(k.rjust(w) for k, w in zip(keys, widths, strict=True)))
+        for c in cells:
+            print("  ".join(v.rjust(w) for v, w in zip(c, widths, strict=True)))
+        return
+    table = Table(title=title)
+    for key in keys:
+        table.add_column(key, justify="right")
+    for c in cells:
+        table.add_row(*c)
+    Console().print(table)
+
+
+def _import_pymanopt() -> tuple[Any, str]:
+    """pymanopt and a note on it, or ``None`` and why not (missing or broken: its rows are skipped)."""
+    try:
+        import pymanopt
+        import pymanopt.manifolds
+        import pymanopt.optimizers
+    except Exception as exc:
+        return None, f"pymanopt not available ({type(exc).__name__}: {exc}); its rows are skipped"
+    return pymanopt, f"pymanopt {pymanopt.__version__} (numpy backend)"
+
+
+def _load() -> str:
+    """The 1-minute load average (other processes on a small machine skew wall times)."""
+    try:
+        return f"{os.getloadavg()[0]:.2f}"
+    except OSError:
+        return "n/a"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="small sizes and one repeat (a smoke run)")
+    parser.add_argument("--repeat", type=int, default=None, help="timed runs per case, median reported (default 3)")
+    parser.add_argument("--max-iterations", type=int, default=10_000, help="iteration cap, both libraries")
+    parser.add_argument("--max-time", type=float, default=120.0, help="seconds per run, both libraries")
+    parser.add_argument("--no-pymanopt", action="store_true", help="skip pymanopt even if installed")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
+    args = parser.parse_args(argv)
+    if args.repeat is None:
+        args.repeat = 1 if args.quick else 3
+    n_rot, n = (10_000, 200) if args.quick else (100_000, 1000)
+
+    pymanopt, note = (None, "pymanopt skipped (--no-pymanopt)") if args.no_pymanopt else _import_pymanopt()
+
+    start_load = _load()
+    rng = np.random.default_rng(args.seed)
+    cases = [karcher_case(n_rot, rng), rayleigh_case(n, rng), brockett_case(n, 5, rng)]
+    print(f"manopt_lie optimizers vs {note}; median of {args.repeat}; stop at |grad| <= {GRAD_RTOL:g}·|grad(x0)|,")
+    print(f"max {args.max_iterations} iterations, max {args.max_time:g} s; "
+          f"{platform.python_implementation()} {platform.python_version()}, numpy {np.__version__}, "
+          f"{os.cpu_count()} cores, load average {_load()} at the start")  # fmt: skip
+    for case in cases:
+        print(f"  {case.name}: {case.title}, optimum {case.optimum:.12g}")
+
+    rows: list[dict[str, Any]] = []
+    ratios: list[dict[str, Any]] = []
+    for case in cases:
+        for key in OURS:
+            pair = run_case(case, key, pymanopt, args)
+            rows.extend(pair)
+            if len(pair) == 2 and "time_s" in pair[0] and "time_s" in pair[1]:
+                ours, theirs = pair
+                ratios.append({
+                    "problem": case.name, "optimizer": key,
+                    "ours_s": ours["time_s"], "pymanopt_s": theirs["time_s"],
+                    "ours_nit": ours["nit"], "pymanopt_nit": theirs["nit"],
+                    "ratio": ours["time_s"] / theirs["time_s"],
+                    "per_iteration_ratio": (ours["time_s"] / max(ours["nit"], 1))
+                    / (theirs["time_s"] / max(theirs["nit"], 1)),
+                })  # fmt: skip
+    evals = [evaluation_costs(case, pymanopt, max(3, args.repeat)) for case in cases]
+
+    fmt = {"time_s": ".3f", "fun": ".10g", "optimum": ".10g", "gap": ".1e", "grad_norm": ".1e", "grad_tol": ".1e"}
+    print_table("Runs (grad_norm in manopt_lie's metric at the final point)", rows, fmt)
+    if ratios:
+        rfmt = {"ours_s": ".3f", "pymanopt_s": ".3f", "ratio": ".2f", "per_iteration_ratio": ".2f"}
+        print_table("Time ratio ours / pymanopt (goal <= 0.2)", ratios, rfmt)
+    print_table("Evaluation costs at x0 (ms)", evals, {k: ".2f" for k in evals[0] if k != "problem"})
+    if pymanopt is None:
+        print(f"\nNote: {note}. Install it (pip install pymanopt) to compare.")
+    if args.json:
+        out = {
+            "settings": {
+                "quick": args.quick, "repeat": args.repeat, "grad_rtol": GRAD_RTOL, "min_step": MIN_STEP,
+                "max_iterations": args.max_iterations, "max_time": args.max_time, "seed": args.seed,
+                "pymanopt": note, "python": platform.python_version(), "numpy": np.__version__,
+                "machine": platform.machine(), "cores": os.cpu_count(), "load_start": start_load,
+                "load_end": _load(),
+            },
+            "problems": [{"name": c.name, "title": c.title, "optimum": c.optimum} for c in cases],
+            "runs": rows, "ratios": ratios, "evaluations": evals,
+        }  # fmt: skip
+        with open(args.json, "w") as f:
+            json.dump(out, f, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,332 @@
+"""Fixed block-sparsity pattern of a factor graph's Jacobian and normal equations.
+
+A least-squares problem ``½ Σ_k Σ_e w_ke ‖r_ke‖²`` has variables ``x_v`` with
+tangent dimension ``d_v`` (stacked in the order of ``dims``; variable ``v``
+owns coordinates ``o_v … o_v + d_v − 1`` with ``o = [0, cumsum(dims)]``) and
+*factor types* ``k``, each an array of edges ``e`` touching ``arity_k``
+variables in slot order. The Jacobian of edge ``e`` w.r.t. its variables,
+concatenated in slot order, is the block ``A_e`` of shape ``(r_k, D_k)`` with
+``D_k = Σ_s d_s``. Then
+
+    J   = the stack of the rows of every ``A_e`` (factor 0 first),
+    H   = JᵀWJ = Σ_e w_e A_eᵀA_e       (scattered into the blocks (v_s, v_t)),
+    g   = JᵀWr = Σ_e w_e A_eᵀr_e       (scattered into the variables' rows),
+
+and a Gauss-Newton step solves ``H δ = −g``. The pattern never changes while
+a solve runs, so every index array is computed once here and each call only
+refills data arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ShapeError
+from ._factors import FactorIndex, check_factor, exclusive_cumsum, index_dtype
+
+__all__ = ["BlockStructure"]
+
+IntArray = NDArray[np.intp]
+FloatArray = NDArray[np.float64]
+
+
+class BlockStructure:
+    """The fixed sparsity of ``J``, ``H = JᵀWJ`` and ``g = JᵀWr`` for a factor graph.
+
+    Parameters
+    ----------
+    dims : array_like of int, shape (n_vars,)
+        Tangent dimension ``d_v ≥ 1`` of every variable.
+    factors : sequence of (var_ids, residual_dim)
+        One entry per factor type: ``var_ids`` is an integer array
+        ``(m, arity)`` of the variables each edge touches, in slot order (all
+        variables in one slot share a dimension; an edge touches a variable at
+        most once); ``residual_dim`` is the length of each edge's residual.
+
+    Raises
+    ------
+    ValueError
+        On ids out of range, a slot with mixed dimensions, a repeated variable
+        within an edge, or a factor type without edges (naming factor and
+        edge), or on no factor types at all.
+
+    Attributes
+    ----------
+    dims : ndarray of int, shape (n_vars,)
+        The variables' tangent dimensions.
+    offsets : ndarray of int, shape (n_vars + 1,)
+        ``[0, cumsum(dims)]``: variable ``v`` owns coordinates
+        ``offsets[v]:offsets[v + 1]`` of ``δ``, ``g`` and ``H``.
+
+    Notes
+    -----
+    ``H`` is a canonical CSC matrix (sorted indices, no duplicates) that
+    stores every block ``(v_s, v_t)`` some edge touches plus every diagonal
+    block, so its ``indptr``/``indices`` arrays are the same objects on every
+    call and a symbolic factorization of ``H`` can be reused (also after
+    :meth:`add_diagonal`). Several edges on the same pair of variables are
+    summed.
+    """
+
+    def __init__(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]]) -> None:
+        d = np.asarray(dims)
+        if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (d < 1).any():
+            raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
+        self.dims: IntArray = d.astype(np.intp)
+        self.offsets: IntArray = exclusive_cumsum(self.dims)
+        if len(factors) == 0:
+            raise ValueError("factors must hold at least one factor type")
+        checked = [check_factor(k, ids, r, self.dims) for k, (ids, r) in enumerate(factors)]
+        block_ids = self._build_hessian_pattern([ids for ids, _ in checked])
+        self._factors: list[FactorIndex] = []
+        jac_cols, hess, grad = [], [], []
+        for (ids, slot_dims), (_, r), blocks in zip(checked, factors, block_ids, strict=True):
+            factor, cols, h, g = self._build_factor(ids, int(r), slot_dims, blocks)
+            self._factors.append(factor)
+            jac_cols.append(cols)
+            hess.append(h)
+            grad.append(g)
+        # Position in H.data of each entry of every A_eᵀA_e, and coordinate of each column of A_e.
+        self._hess_scatter: IntArray = np.concatenate(hess)
+        self._grad_scatter: IntArray = np.concatenate(grad)
+        # Workspaces reused by normal_equations: fresh arrays this size cost
+        # more in page faults than the products written into them.
+        self._hess_work = np.empty(self._hess_scatter.size)
+        self._grad_work = np.empty(self._grad_scatter.size)
+        self._weighted_work = np.empty(max(f.m * f.residual_dim * f.width for f in self._factors))
+        self._build_jacobian_pattern(jac_cols)
+
+    # -- symbolic analysis -------------------------------------------------
+
+    def _build_hessian_pattern(self, all_ids: list[IntArray]) -> list[IntArray]:
+        """Block-CSC pattern of ``H`` and its scalar CSC expansion.
+
+        Returns, per factor, the block index of every slot pair as an array
+        ``(arity, m, arity)`` indexed ``[t, e, s]`` (rows of slot ``s``,
+        columns of slot ``t``).
+
+        Block ``k = (a, b)`` (rows of variable ``a`` in the columns of ``b``)
+        puts entry ``(o_a + i, o_b + j)`` at ``base[b] + j·L[b] + within[k] + i``
+        of ``H.data``, where ``L[b]`` is the length of each column of ``b``,
+        ``base[b]`` the start of ``b``'s columns and ``within[k]`` the offset
+        of block ``k`` inside them.
+        """
+        nv, dims = self.dims.size, self.dims
+        keys = [np.arange(nv, dtype=np.int64) * (nv + 1)]
+        keys += [(ids[:, t, None] * nv + ids).ravel() for ids in all_ids for t in range(ids.shape[1])]
+        all_keys = np.concatenate(keys)
+        ukeys, inverse = np.unique(all_keys, return_inverse=True)
+        bcol, brow = np.divmod(ukeys, nv)
+        col_len = np.bincount(bcol, weights=dims[brow], minlength=nv).astype(np.intp)
+        base = exclusive_cumsum(col_len * dims)
+        stream_start = exclusive_cumsum(col_len)
+        within = exclusive_cumsum(dims[brow])[:-1] - stream_start[bcol]
+        self._col_len, self._base, self._within = col_len, base, within
+
+        n, nnz = int(self.offsets[-1]), int(base[-1])
+        itype = index_dtype(max(nnz, n))
+        var_of_col = np.repeat(np.arange(nv), dims)
+        j_local = np.arange(n) - self.offsets[var_of_col]
+        indptr = np.append(base[var_of_col] + j_local * col_len[var_of_col], nnz)
+        # Each column of variable b lists the rows of b's blocks in order: the
+        # "row stream" segment of b, repeated d_b times.
+        row_stream = np.repeat(self.offsets[brow] - exclusive_cumsum(dims[brow])[:-1], dims[brow])
+        row_stream += np.arange(row_stream.size)
+        per_col = col_len[var_of_col]
+        pos_in_col = np.arange(nnz) - np.repeat(indptr[:-1], per_col)
+        indices = row_stream[np.repeat(stream_start[var_of_col], per_col) + pos_in_col]
+        self._indptr = indptr.astype(itype)
+        self._indices = indices.astype(itype)
+        self._diag_pos = indptr[:-1] + within[inverse[:nv]][var_of_col] + j_local
+        self._n = n
+        parts = np.split(inverse[nv:], np.cumsum([ids.size * ids.shape[1] for ids in all_ids])[:-1])
+        return [p.reshape(ids.shape[1], *ids.shape) for p, ids in zip(parts, all_ids, strict=True)]
+
+    def _build_factor(
+        self, ids: IntArray, r: int, slot_dims: tuple[int, ...], block: IntArray
+    ) -> tuple[FactorIndex, IntArray, IntArray, IntArray]:
+        """Index arrays of one factor type: its J gather, J's CSR columns, H and g scatters."""
+        m, width = ids.shape[0], sum(slot_dims)
+        starts = np.cumsum((0, *slot_dims))
+        colmap = np.concatenate([self.offsets[ids[:, s], None] + np.arange(ds) for s, ds in enumerate(slot_dims)], 1)
+        # A_eᵀA_e is symmetric, so its entry [p, q] may go to H[q, p]: consecutive
+        # q then land on consecutive rows of one CSC column, which makes the
+        # scatter far more cache-friendly than walking along a row.
+        hess = np.empty((m, width, width), dtype=np.intp)
+        for t, dt in enumerate(slot_dims):
+            b = ids[:, t]
+            col_part = self._col_len[b, None] * np.arange(dt)  # (m, dt)
+            for s, ds in enumerate(slot_dims):
+                start = self._base[b] + self._within[block[t, :, s]]
+                hess[:, starts[t] : starts[t + 1], starts[s] : starts[s + 1]] = (
+                    start[:, None, None] + col_part[:, :, None] + np.arange(ds)[None, None, :]
+                )
+        order = np.argsort(colmap, axis=1, kind="stable")
+        jac = (np.arange(m) * (r * width))[:, None, None] + (np.arange(r) * width)[:, None] + order[:, None, :]
+        cols = np.broadcast_to(np.take_along_axis(colmap, order, 1)[:, None, :], (m, r, width)).ravel()
+        return FactorIndex(ids, r, slot_dims, jac.ravel()), cols, hess.ravel(), colmap.ravel()
+
+    def _build_jacobian_pattern(self, jac_cols: list[IntArray]) -> None:
+        """CSR pattern of ``J``: every row of edge ``e`` holds ``e``'s columns, sorted."""
+        row_len = np.concatenate([np.full(f.m * f.residual_dim, f.width) for f in self._factors])
+        indptr = exclusive_cumsum(row_len)
+        itype = index_dtype(max(int(indptr[-1]), self._n))
+        self._jac_indptr = indptr.astype(itype)
+        self._jac_indices = np.concatenate(jac_cols).astype(itype)
+        self._jac_start = exclusive_cumsum(np.array([f.m * f.residual_dim * f.width for f in self._factors]))
+
+    # -- properties ----------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Total tangent dimension ``Σ_v d_v`` (columns of ``J``, size of ``H``)."""
+        return self._n
+
+    @property
+    def n_rows(self) -> int:
+        """Number of residual rows ``Σ_k m_k r_k`` (rows of ``J``)."""
+        return self._jac_indptr.size - 1
+
+    @property
+    def nnz(self) -> int:
+        """Number of stored entries of ``H`` (both triangles, all diagonal blocks)."""
+        return self._indices.size
+
+    @property
+    def indptr(self) -> NDArray[np.signedinteger]:
+        """The CSC ``indptr`` of ``H`` (the same array object on every call)."""
+        return self._indptr
+
+    @property
+    def indices(self) -> NDArray[np.signedinteger]:
+        """The CSC row ``indices`` of ``H`` (the same array object on every call)."""
+        return self._indices
+
+    # -- numeric assembly ----------------------------------------------------
+
+    def _check_blocks(self, blocks: Sequence[ArrayLike]) -> list[FloatArray]:
+        if len(blocks) != len(self._factors):
+            raise ValueError(f"expected {len(self._factors)} Jacobian block arrays (one per factor), got {len(blocks)}")
+        out = []
+        for k, (a, f) in enumerate(zip(blocks, self._factors, strict=True)):
+            arr = np.asarray(a, dtype=np.float64)
+            if arr.shape != (f.m, f.residual_dim, f.width):
+                raise ShapeError(
+                    f"blocks[{k}]: expected shape (m, residual_dim, Σ slot dims) = "
+                    f"{(f.m, f.residual_dim, f.width)}, got {arr.shape}"
+                )
+            out.append(arr)
+        return out
+
+    def _csc(self, data: FloatArray) -> sp.csc_matrix:
+        return sp.csc_matrix((data, self._indices, self._indptr), shape=(self._n, self._n), copy=False)
+
+    def jacobian(self, blocks: Sequence[ArrayLike]) -> sp.csr_matrix:
+        """The sparse Jacobian ``J`` (CSR, sorted indices, fixed pattern).
+
+        Parameters
+        ----------
+        blocks : sequence of array_like, shape (m_k, r_k, D_k)
+            Per factor type, each edge's Jacobian ``A_e = [∂r_e/∂x_{v_0} | …]``
+            w.r.t. its variables concatenated in slot order.
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (n_rows, n)
+            Row ``ρ_k + e·r_k + i`` is row ``i`` of edge ``e`` of factor ``k``
+            (``ρ_k`` = rows of the factors before ``k``).
+        """
+        data = np.empty(self._jac_indices.size)
+        for a, f, start in zip(self._check_blocks(blocks), self._factors, self._jac_start, strict=False):
+            data[start : start + f.jac_gather.size] = a.ravel()[f.jac_gather]
+        shape = (self.n_rows, self._n)
+        return sp.csr_matrix((data, self._jac_indices, self._jac_indptr), shape=shape, copy=False)
+
+    def normal_equations(
+        self,
+        blocks: Sequence[ArrayLike],
+        residuals: Sequence[ArrayLike],
+        weights: Sequence[ArrayLike] | None = None,
+    ) -> tuple[sp.csc_matrix, FloatArray]:
+        """Gauss-Newton normal equations ``H = JᵀWJ`` and ``g = JᵀWr``.
+
+        With ``A_e`` the block of edge ``e`` and ``w_e`` its weight,
+
+            H = Σ_e w_e A_eᵀ A_e,     g = Σ_e w_e A_eᵀ r_e,
+
+        each edge's ``(D, D)`` product scattered into the blocks of its
+        variables (products of edges on the same pair are summed). The
+        Gauss-Newton step solves ``H δ = −g``.
+
+        Parameters
+        ----------
+        blocks : sequence of array_like, shape (m_k, r_k, D_k)
+            Per factor type, the edges' Jacobians (see :meth:`jacobian`).
+        residuals : sequence of array_like, shape (m_k, r_k)
+            Per factor type, the edges' residuals.
+        weights : sequence of array_like, shape (m_k,), optional
+            Per factor type, a scalar weight per edge (e.g. IRLS weights of a
+            robust loss); ``None`` (the default) means ``W = I``.
+
+        Returns
+        -------
+        H : scipy.sparse.csc_matrix, shape (n, n)
+            Symmetric, both triangles stored, with :attr:`indptr` and
+            :attr:`indices` (the same objects on every call).
+        g : ndarray, shape (n,)
+
+        Notes
+        -----
+        Reuses workspaces of the structure: one structure must not assemble
+        from two threads at once. ``H`` and ``g`` are always new arrays.
+        """
+        blocks_ = self._check_blocks(blocks)
+        if len(residuals) != len(self._factors):
+            raise ValueError(f"expected {len(self._factors)} residual arrays (one per factor), got {len(residuals)}")
+        if weights is not None and len(weights) != len(self._factors):
+            raise ValueError(f"expected {len(self._factors)} weight arrays (one per factor), got {len(weights)}")
+        hess_vals, grad_vals = self._hess_work, self._grad_work
+        h0 = g0 = 0
+        for k, (a, f) in enumerate(zip(blocks_, self._factors, strict=True)):
+            r = np.asarray(residuals[k], dtype=np.float64)
+            if r.shape != (f.m, f.residual_dim):
+                raise ShapeError(f"residuals[{k}]: expected shape {(f.m, f.residual_dim)}, got {r.shape}")
+            aw = a
+            if weights is not None:
+                w = np.asarray(weights[k], dtype=np.float64)
+                if w.shape != (f.m,):
+                    raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")
+                aw = np.multiply(a, w[:, None, None], out=self._weighted_work[: a.size].reshape(a.shape))
+            h1, g1 = h0 + f.m * f.width**2, g0 + f.m * f.width
+            np.matmul(aw.transpose(0, 2, 1), a, out=hess_vals[h0:h1].reshape(f.m, f.width, f.width))
+            np.matmul(r[:, None, :], aw, out=grad_vals[g0:g1].reshape(f.m, 1, f.width))
+            h0, g0 = h1, g1
+        data = np.asarray(np.bincount(self._hess_scatter, weights=hess_vals, minlength=self.nnz), dtype=np.float64)
+        g = np.asarray(np.bincount(self._grad_scatter, weights=grad_vals, minlength=self._n), dtype=np.float64)
+        return self._csc(data), g
+
+    def add_diagonal(self, H: sp.csc_matrix, values: ArrayLike) -> sp.csc_matrix:
+        """``H + diag(values)`` with the pattern of ``H`` kept (e.g. Levenberg-Marquardt damping).
+
+        Parameters
+        ----------
+        H : scipy.sparse.csc_matrix, shape (n, n)
+            A matrix returned by :meth:`normal_equations` (or by this method).
+        values : array_like, shape (n,) or scalar
+            Added to the diagonal, e.g. ``λ·H.diagonal()`` or ``λ``.
+
+        Returns
+        -------
+        scipy.sparse.csc_matrix
+            A new matrix sharing :attr:`indptr` and :attr:`indices`, so a
+            solver's symbolic analysis of ``H`` is reused; ``H`` is unchanged.
+        """
+        if H.shape != (self._n, self._n) or H.nnz != self.nnz or H.format != "csc":
+            raise ValueError("add_diagonal: H does not have this structure's CSC pattern")
+        data = H.data.copy()
+        data[self._diag_pos] += np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
+        return self._csc(data)

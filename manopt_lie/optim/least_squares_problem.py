@@ -1,0 +1,186 @@
+"""Nonlinear least squares on a power manifold, from factor types given as arrays of edges.
+
+The variable is a point of ``Power(M, n)`` (``n`` poses, rotations, …) with
+tangent vectors ``(n, d)``. Each :class:`Factor` is one residual *type*
+evaluated for all of its ``m`` edges in one vectorized call; its Jacobians are
+right Jacobians in tangent coordinates. The cost is
+
+    f(x) = ½ Σ_factors Σ_edges ρ(‖r_e(x)‖²)
+
+with ``ρ`` the factor's robust loss (plain least squares by default), the
+gradient ``Σ w Jᵀr`` and the Gauss-Newton Hessian ``Σ w JᵀJ`` with IRLS weights
+``w = ρ'(‖r‖²)``, assembled as a sparse matrix with a fixed pattern.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, cast
+
+import numpy as np
+import scipy.sparse
+from numpy.typing import NDArray
+
+from ..linalg import BlockStructure
+from ..manifolds import Power
+from .losses import RobustLoss, Trivial, parse_loss
+from .problem import Problem
+
+FloatArray = NDArray[np.float64]
+Residual = Callable[..., Any]
+
+
+@dataclass(frozen=True)
+class Factor:
+    """One residual type over ``m`` edges.
+
+    Parameters
+    ----------
+    variables : int array ``(m, arity)``
+        The variables (indices into the power manifold) each edge connects.
+    residual : callable
+        ``residual(*points, jac)`` gets, for each slot ``s``, the points
+        ``x[variables[:, s]]`` (batch shape ``(m,)``) and returns the residuals
+        ``(m, k)``; with ``jac=True`` it returns ``(r, [J_1, …, J_arity])``,
+        ``J_s`` of shape ``(m, k, d)``: right Jacobians in tangent coordinates.
+    loss : RobustLoss, str or None
+        Applied to ``‖r‖²`` per edge (IRLS): an instance, ``"huber:1.0"``-style
+        text (see :func:`~manopt_lie.optim.losses.parse_loss`) or ``None`` for
+        plain least squares.
+    name : str
+        For messages.
+    """
+
+    variables: NDArray[np.int64]
+    residual: Residual
+    loss: RobustLoss | str | None = field(default_factory=Trivial)
+    name: str = "factor"
+
+    def __post_init__(self) -> None:
+        v = np.asarray(self.variables)
+        if v.ndim == 1:
+            v = v[:, None]
+        if v.ndim != 2 or v.shape[0] == 0 or not np.issubdtype(v.dtype, np.integer):
+            raise ValueError(f"{self.name}: variables must be a non-empty integer array (m, arity), got {v.shape}")
+        object.__setattr__(self, "variables", v.astype(np.int64))
+        object.__setattr__(self, "loss", parse_loss(self.loss))
+
+    @property
+    def robust_loss(self) -> RobustLoss:
+        """The loss as a :class:`RobustLoss` (``loss`` after parsing)."""
+        return cast(RobustLoss, self.loss)
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """Everything Gauss-Newton needs at one point: cost, gradient, ``H = JᵀWJ``."""
+
+    cost: float
+    grad: FloatArray  # (n, d)
+    hessian: scipy.sparse.csc_matrix
+    residuals: list[FloatArray]
+    weights: list[FloatArray]
+
+
+class LeastSquaresProblem(Problem):
+    """``½ Σ ρ(‖r‖²)`` over factor types on ``Power(M, n)``; also a :class:`Problem` whose
+    Hessian is the Gauss-Newton model, so every optimizer runs on it.
+
+    Parameters
+    ----------
+    manifold : Power
+        ``Power(M, n)`` with vector tangents (``(n, d)``).
+    factors : sequence of Factor
+    fixed : int array, optional
+        Variables held constant (e.g. the first pose, fixing the gauge): their
+        Jacobian columns are dropped, so steps never move them.
+    hessian : callable ``(x, v) ↦ Hess f(x)[v]``, optional
+        The exact Riemannian Hessian-vector product, for optimizers that use
+        :meth:`hess` (the trust region) instead of the Gauss-Newton model.
+    """
+
+    __slots__ = ("_cache", "_dim", "_factors", "_fixed", "_n", "_structure")
+
+    def __init__(
+        self,
+        manifold: Power,
+        factors: Sequence[Factor],
+        *,
+        fixed: Sequence[int] | NDArray[Any] = (),
+        hessian: Callable[[Any, FloatArray], FloatArray] | None = None,
+    ) -> None:
+        if not isinstance(manifold, Power) or len(manifold.shape) != 1 or manifold.manifold.tangent_ndim != 1:
+            raise TypeError(f"LeastSquaresProblem: need Power(M, n) with vector tangents, got {manifold!r}")
+        if not factors:
+            raise ValueError("LeastSquaresProblem: no factors")
+        self._n, self._dim = manifold.shape[0], manifold.manifold.dim
+        for f in factors:
+            bad = (f.variables < 0) | (f.variables >= self._n)
+            if bad.any():
+                edge = int(np.argwhere(bad)[0, 0])
+                raise ValueError(
+                    f"{f.name}: edge {edge} refers to variable {f.variables[edge]} outside 0..{self._n - 1}"
+                )
+        self._factors = tuple(factors)
+        self._fixed = np.zeros(self._n, dtype=bool)
+        self._fixed[np.asarray(fixed, dtype=np.int64)] = True
+        self._structure: BlockStructure | None = None
+        self._cache: tuple[Any, Linearization] | None = None
+        rhess = hessian if hessian is not None else self._gauss_newton_product
+        super().__init__(manifold, self._evaluate_cost, rgrad=self._evaluate_grad, rhess=rhess)
+
+    @property
+    def factors(self) -> tuple[Factor, ...]:
+        return self._factors
+
+    @property
+    def fixed(self) -> NDArray[np.bool_]:
+        return self._fixed.copy()
+
+    def _points(self, x: Any, factor: Factor) -> list[Any]:
+        return [x[factor.variables[:, s]] for s in range(factor.variables.shape[1])]
+
+    def _evaluate_cost(self, x: Any) -> float:
+        total = 0.0
+        for f in self._factors:
+            r = f.residual(*self._points(x, f), jac=False)
+            total += 0.5 * float(np.sum(f.robust_loss.rho(np.einsum("...i,...i->...", r, r))))
+        return total
+
+    def linearize(self, x: Any) -> Linearization:
+        """Residuals, IRLS weights, cost, gradient and Gauss-Newton Hessian at ``x``
+        (the last one is remembered: points are immutable, so ``x is x_last`` is safe)."""
+        if self._cache is not None and self._cache[0] is x:
+            return self._cache[1]
+        residuals, blocks, weights, cost = [], [], [], 0.0
+        for f in self._factors:
+            r, jacobians = f.residual(*self._points(x, f), jac=True)
+            s = np.einsum("...i,...i->...", r, r)
+            cost += 0.5 * float(np.sum(f.robust_loss.rho(s)))
+            # Fixed variables: zero columns, so their update is exactly zero.
+            keep = ~self._fixed[f.variables]
+            blocks.append(np.concatenate([j * keep[:, s, None, None] for s, j in enumerate(jacobians)], axis=-1))
+            residuals.append(r)
+            weights.append(f.robust_loss.weight(s))
+        if self._structure is None:
+            dims = np.full(self._n, self._dim)
+            shapes = [(f.variables, r.shape[-1]) for f, r in zip(self._factors, residuals, strict=True)]
+            self._structure = BlockStructure(dims, shapes)
+        h, g = self._structure.normal_equations(blocks, residuals, weights)
+        h = self._structure.add_diagonal(h, np.repeat(self._fixed, self._dim).astype(np.float64))
+        lin = Linearization(cost, g.reshape(self._n, self._dim), h, residuals, weights)
+        self._cache = (x, lin)
+        return lin
+
+    def _evaluate_grad(self, x: Any) -> FloatArray:
+        return self.linearize(x).grad
+
+    def _gauss_newton_product(self, x: Any, v: FloatArray) -> FloatArray:
+        """``JᵀWJ v`` (fixed variables: ``v`` itself, which no step ever excites)."""
+        return (self.linearize(x).hessian @ np.asarray(v).reshape(-1)).reshape(self._n, self._dim)
+
+    @property
+    def structure(self) -> BlockStructure | None:
+        """The sparsity structure (built at the first linearization)."""
+        return self._structure

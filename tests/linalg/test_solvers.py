@@ -1,0 +1,172 @@
+"""CholeskySolver (every available backend) and PCG: accuracy, reuse of the analysis, singular systems."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from manopt_lie import ShapeError
+from manopt_lie.linalg import BlockStructure, CholeskySolver, SingularSystemError, block_jacobi, pcg_solve
+
+from .helpers import pose_graph, random_factor_graph, random_values
+
+BACKENDS = CholeskySolver.available_backends()
+
+
+@pytest.fixture(params=BACKENDS)
+def solver(request):
+    return CholeskySolver(request.param)
+
+
+@pytest.fixture
+def system(rng):
+    S, blocks, residuals = pose_graph(rng, n_poses=60, d=6)
+    H, g = S.normal_equations(blocks, residuals)
+    return S, blocks, residuals, H, g
+
+
+def test_auto_prefers_the_fastest_available_backend():
+    assert CholeskySolver().backend == BACKENDS[0]
+    assert BACKENDS[-1] == "superlu"
+
+
+def test_solves_spd_systems(solver, system):
+    _, _, _, H, g = system
+    x = solver(H, g)
+    x_ref = np.linalg.solve(H.toarray(), g)
+    assert np.linalg.norm(x - x_ref) <= 1e-10 * np.linalg.norm(x_ref)
+
+
+def test_mixed_dimension_graph(solver, rng):
+    dims, factors = random_factor_graph(rng)
+    S = BlockStructure(dims, factors)
+    blocks, residuals, weights = random_values(rng, dims, factors)
+    H, g = S.normal_equations(blocks, residuals, weights)
+    H = S.add_diagonal(H, 1.0)  # random small graphs may leave variables unconstrained
+    x_ref = np.linalg.solve(H.toarray(), g)
+    assert np.linalg.norm(solver(H, g) - x_ref) <= 1e-10 * np.linalg.norm(x_ref)
+
+
+def test_analysis_is_reused_while_the_pattern_is_fixed(solver, system, rng):
+    S, blocks, residuals, H, g = system
+    solver(H, g)
+    for lam in (1e-3, 1e-1, 10.0):
+        H_damped = S.add_diagonal(H, lam * H.diagonal())
+        x = solver(H_damped, g)
+        assert np.linalg.norm(H_damped @ x - g) <= 1e-10 * np.linalg.norm(g)
+    H2, g2 = S.normal_equations([b * rng.uniform(0.5, 2.0) for b in blocks], residuals)
+    solver(H2, g2)
+    assert solver.n_analyses == 1
+    # A copy with equal arrays (not the same objects) is recognised too.
+    solver(sp.csc_matrix((H.data, H.indices.copy(), H.indptr.copy()), shape=H.shape), g)
+    assert solver.n_analyses == 1
+    other, other_blocks, other_res = pose_graph(rng, n_poses=30, d=3)
+    solver(*other.normal_equations(other_blocks, other_res))
+    assert solver.n_analyses == 2
+
+
+def test_phases_can_be_called_separately(solver, system):
+    S, _, _, H, g = system
+    with pytest.raises(RuntimeError, match="factorize"):
+        solver.solve(g)
+    solver.analyze(H)
+    solver.factorize(S.add_diagonal(H, 1.0))
+    x1 = solver.solve(g)
+    x2 = solver.solve(2 * g)
+    np.testing.assert_allclose(x2, 2 * x1, rtol=1e-12)
+    with pytest.raises(ValueError, match="analysed sparsity pattern"):
+        solver.factorize(sp.identity(S.n, format="csc"))
+    with pytest.raises(ShapeError, match=r"b: expected shape \(360,\)"):
+        solver.solve(g[:-1])
+
+
+@pytest.mark.parametrize("d", [3, 6])
+def test_unanchored_pose_graph_is_singular(solver, rng, d):
+    S, blocks, residuals = pose_graph(rng, n_poses=40, d=d, anchor=False)
+    H, g = S.normal_equations(blocks, residuals)
+    with pytest.raises(SingularSystemError, match="fix the gauge") as err:
+        solver(H, g)
+    assert "never return a garbage step" in str(err.value)
+    assert isinstance(err.value, ValueError)
+
+
+@pytest.mark.parametrize(
+    ("dense", "b"),
+    [
+        (np.array([[1.0, 1.0], [1.0, 1.0]]), np.ones(2)),  # exactly singular, consistent right-hand side
+        (np.diag([2.0, -1.0, 3.0]), np.ones(3)),  # indefinite: bᵀH⁻¹b < 0
+        (np.array([[1.0, 2.0], [2.0, 1.0]]), np.array([1.0, -1.0])),  # indefinite, nonzero pivots
+    ],
+)
+def test_singular_or_indefinite_matrices_raise(solver, dense, b):
+    with pytest.raises(SingularSystemError, match="singular or indefinite"):
+        solver(sp.csc_matrix(dense), b)
+
+
+def test_rejects_bad_matrices(solver):
+    with pytest.raises(ValueError, match="not symmetric"):
+        solver(sp.csc_matrix(np.array([[2.0, 1.0], [0.0, 2.0]])), np.ones(2))
+    with pytest.raises(ValueError, match="no diagonal entry in column 1"):
+        solver(sp.csc_matrix(np.array([[2.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]])), np.ones(3))
+    with pytest.raises(ValueError, match="square"):
+        solver(sp.csc_matrix(np.ones((2, 3))), np.ones(2))
+    with pytest.raises(ValueError, match="square"):
+        solver(np.eye(2), np.ones(2))
+
+
+def test_unknown_backend():
+    with pytest.raises(ValueError, match="unknown backend 'cholmod'"):
+        CholeskySolver("cholmod")
+
+
+# -- PCG -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("preconditioner", ["block-jacobi", "jacobi", None])
+def test_pcg_agrees_with_the_direct_solver(system, preconditioner):
+    S, _, _, H, g = system
+    result = pcg_solve(H, g, tol=1e-12, preconditioner=preconditioner, dims=S.dims, maxiter=10 * S.n)
+    assert result.converged and result.residual <= 1e-12 and result.nit > 0
+    x = CholeskySolver()(H, g)
+    assert np.linalg.norm(result.x - x) <= 1e-8 * np.linalg.norm(x)
+
+
+def test_pcg_reports_a_truncated_run(system):
+    S, _, _, H, g = system
+    result = pcg_solve(H, g, tol=1e-14, maxiter=3, dims=S.dims)
+    assert not result.converged and result.nit == 3 and result.residual > 1e-14
+    assert pcg_solve(H, np.zeros(S.n), dims=S.dims).nit == 0
+
+
+def test_block_jacobi_inverts_the_diagonal_blocks(rng):
+    dims, factors = random_factor_graph(rng)
+    S = BlockStructure(dims, factors)
+    H, _ = S.normal_equations(*random_values(rng, dims, factors))
+    H = S.add_diagonal(H, 1.0)
+    M = block_jacobi(H, dims).toarray()
+    Hd = H.toarray()
+    for v in range(dims.size):
+        block = slice(S.offsets[v], S.offsets[v + 1])
+        np.testing.assert_allclose(M[block, block] @ Hd[block, block], np.eye(dims[v]), atol=1e-10)
+    var_of = np.repeat(np.arange(dims.size), dims)
+    assert np.all(M[var_of[:, None] != var_of[None, :]] == 0)
+
+
+def test_pcg_errors(system):
+    S, _, _, H, g = system
+    with pytest.raises(ValueError, match="needs dims"):
+        pcg_solve(H, g)
+    with pytest.raises(ValueError, match="unknown preconditioner"):
+        pcg_solve(H, g, preconditioner="ilu")
+    with pytest.raises(ValueError, match="summing to n"):
+        pcg_solve(H, g, dims=S.dims[:-1])
+    with pytest.raises(ShapeError, match="b: expected shape"):
+        pcg_solve(H, g[:-1], dims=S.dims)
+    indefinite = sp.csc_matrix(np.diag([1.0, 2.0, -1.0]))
+    with pytest.raises(SingularSystemError, match="variable 2 is not positive definite"):
+        pcg_solve(indefinite, np.ones(3), dims=[1, 1, 1])
+    with pytest.raises(SingularSystemError, match="diagonal entry 2"):
+        pcg_solve(indefinite, np.ones(3), preconditioner="jacobi")
+    with pytest.raises(SingularSystemError, match="non-positive curvature"):
+        pcg_solve(indefinite, np.ones(3), preconditioner=None)

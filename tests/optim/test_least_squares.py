@@ -1,0 +1,178 @@
+"""Least squares: Gauss-Newton, Levenberg-Marquardt and the trust region's Gauss-Newton model
+on problems with known minimizers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from manopt_lie.linalg import SingularSystemError
+
+from manopt_lie import SE2, SE3, SO3
+from manopt_lie.check import check_gradient
+from manopt_lie.manifolds import Euclidean, LieGroupManifold, Power, Sphere
+from manopt_lie.optim import (
+    Factor,
+    GaussNewton,
+    LeastSquaresProblem,
+    LevenbergMarquardt,
+    Problem,
+    Status,
+    TrustRegion,
+)
+from manopt_lie.optim.losses import Cauchy, GemanMcClure, Huber, TruncatedL2, parse_loss
+
+SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
+solvers = pytest.mark.parametrize("make", SOLVERS.values(), ids=SOLVERS.keys())
+
+
+def between(z):
+    """The residual ``(Xᵢ⁻¹Xⱼ) ⊖ Z`` of relative-pose measurements ``Z`` and its Jacobians."""
+
+    def residual(xi, xj, jac):
+        if not jac:
+            return xi.between(xj).rminus(z)
+        e, j_i, j_j = xi.between(xj, jac=True)
+        r, j_e, _ = e.rminus(z, jac=True)
+        return r, [j_e @ j_i, j_e @ j_j]
+
+    return residual
+
+
+def pose_chain(group, n=40, closures=15, seed=0):
+    """A random-walk trajectory, exact odometry and loop-closure measurements."""
+    rng = np.random.default_rng(seed)
+    steps = 0.3 * rng.standard_normal((n - 1, group.dim))
+    poses = [group.identity()]
+    for s in steps:
+        poses.append(poses[-1].rplus(s))
+    truth = group.stack(poses)
+    odometry = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
+    loops = rng.choice(n, size=(closures, 2))
+    loops = loops[loops[:, 0] != loops[:, 1]]
+    edges = np.concatenate([odometry, loops])
+    z = truth[edges[:, 0]].between(truth[edges[:, 1]])
+    problem = LeastSquaresProblem(
+        Power(LieGroupManifold(group), n), [Factor(edges, between(z), name="between")], fixed=[0]
+    )
+    noise = 0.1 * rng.standard_normal((n, group.dim))
+    noise[0] = 0.0
+    return problem, truth, truth.rplus(noise)
+
+
+@solvers
+@pytest.mark.parametrize("group", [SE2, SE3], ids=["SE2", "SE3"])
+def test_consistent_pose_graph_is_solved_exactly(make, group):
+    problem, truth, x0 = pose_chain(group)
+    res = make().solve(problem, x0)  # the defaults: a gradient 10⁶ times smaller
+    assert res.status is Status.GRADIENT_NORM and res.grad_norm <= 1e-6 * res.history.grad_norm[0]
+    res = make(grad_rtol=1e-14).solve(problem, x0)
+    assert res.success, res
+    assert res.fun < 1e-18
+    assert truth.dist(res.x).max() < 1e-8
+    np.testing.assert_array_equal(res.x[0].as_matrix(), truth[0].as_matrix())  # the anchor never moves
+
+
+def rosenbrock():
+    """Rosenbrock as least squares: ``r = (10(y − x²), 1 − x)``, minimizer (1, 1)."""
+
+    def residual(p, jac):
+        x, y = p[:, 0], p[:, 1]
+        r = np.stack([10 * (y - x**2), 1 - x], axis=-1)
+        if not jac:
+            return r
+        j = np.zeros((len(x), 2, 2))
+        j[:, 0, 0], j[:, 0, 1], j[:, 1, 0] = -20 * x, 10.0, -1.0
+        return r, [j]
+
+    return LeastSquaresProblem(Power(Euclidean(2), 1), [Factor(np.zeros((1, 1), dtype=int), residual)])
+
+
+@solvers
+def test_rosenbrock_minimizer(make):
+    res = make(grad_rtol=1e-12).solve(rosenbrock(), np.array([[-1.2, 1.0]]))
+    assert res.success, res
+    np.testing.assert_allclose(res.x, [[1.0, 1.0]], atol=1e-8)
+
+
+def robust_rotation_averaging(loss, seed=0):
+    """Measurements of one rotation ``R*``: 70 % exact, 30 % arbitrary outliers."""
+    rng = np.random.default_rng(seed)
+    truth = SO3.random(rng)
+    m = 50
+    measurements = SO3.concatenate([truth.broadcast_to((35,)), SO3.random(rng, (m - 35,))])
+
+    def residual(r, jac):
+        if not jac:
+            return measurements.rminus(r)
+        tau, _, j_r = measurements.rminus(r, jac=True)
+        return tau, [j_r]
+
+    factor = Factor(np.zeros((m, 1), dtype=int), residual, loss=loss)
+    return LeastSquaresProblem(Power(LieGroupManifold(SO3), 1), [factor]), truth, truth.rplus([[0.1, -0.1, 0.05]])
+
+
+@solvers
+@pytest.mark.parametrize(
+    "loss, tol", [(TruncatedL2(0.3), 1e-9), (GemanMcClure(0.1), 1e-3), (Cauchy(0.05), 1e-2), (Huber(0.01), 2e-2)],
+    ids=["truncated", "geman-mcclure", "cauchy", "huber"],
+)  # fmt: skip
+def test_robust_losses_reject_outliers(make, loss, tol):
+    problem, truth, x0 = robust_rotation_averaging(loss)
+    res = make(max_iterations=500).solve(problem, x0)
+    assert res.success, res
+    assert truth.dist(res.x)[0] < tol
+    plain, _, _ = robust_rotation_averaging(None)
+    assert truth.dist(GaussNewton().solve(plain, x0).x)[0] > 0.1  # what the outliers do unchecked
+
+
+def test_gradient_of_a_robust_problem_checks_out():
+    problem, _, x0 = robust_rotation_averaging(Cauchy(0.5))
+    assert check_gradient(problem, x0, rng=0).passed
+
+
+def test_missing_gauge_is_a_clear_error():
+    problem, _, x0 = pose_chain(SE3, n=10, closures=3)
+    free = LeastSquaresProblem(problem.manifold, problem.factors)
+    with pytest.raises(SingularSystemError, match="gauge"):
+        GaussNewton().solve(free, x0)
+
+
+def test_levenberg_marquardt_history_and_damping():
+    problem, _, x0 = pose_chain(SE2, n=20, closures=5)
+    res = LevenbergMarquardt().solve(problem, x0)
+    assert res.status is Status.GRADIENT_NORM
+    damping = res.history.extra["damping"][1:]
+    assert np.all(damping > 0) and len(damping) == res.nit
+
+
+def test_problem_validation():
+    manifold = Power(LieGroupManifold(SE2), 3)
+    with pytest.raises(ValueError, match="outside"):
+        LeastSquaresProblem(manifold, [Factor(np.array([[0, 3]]), between(SE2.identity((1,))))])
+    with pytest.raises(ValueError):
+        LeastSquaresProblem(manifold, [])
+    with pytest.raises(TypeError):
+        LeastSquaresProblem(Sphere(3), [Factor(np.array([[0]]), lambda x, jac: x)])
+    with pytest.raises(ValueError):
+        Factor(np.zeros((0, 2), dtype=int), between(SE2.identity((1,))))
+    with pytest.raises(TypeError, match="LeastSquaresProblem"):
+        GaussNewton().solve(Problem(Euclidean(2), cost=lambda x: 0.0, egrad=lambda x: x), np.zeros(2))
+
+
+def test_parse_loss():
+    assert parse_loss("huber:2") == Huber(2.0)
+    assert parse_loss("cauchy") == Cauchy(1.0)
+    assert parse_loss(None).rho(np.array(4.0)) == 4.0
+    with pytest.raises(ValueError, match="unknown"):
+        parse_loss("tukey:1")
+    with pytest.raises(ValueError):
+        parse_loss("huber:-1")
+
+
+@pytest.mark.parametrize("loss", [Huber(0.7), Cauchy(0.7), GemanMcClure(0.7), TruncatedL2(0.7)], ids=repr)
+def test_loss_weights_are_derivatives(loss):
+    s = np.linspace(0.01, 3.0, 50)
+    s = s[np.abs(s - 0.49) > 1e-3]  # TruncatedL2 has a kink at c²
+    h = 1e-6
+    np.testing.assert_allclose((loss.rho(s + h) - loss.rho(s - h)) / (2 * h), loss.weight(s), atol=1e-6)
+    np.testing.assert_allclose(loss.rho(np.array([1e-8])), 1e-8, rtol=1e-6)  # ρ(s) ≈ s near 0
