@@ -31,7 +31,7 @@ pymanopt's cap on cost evaluations is lifted, since ours has none.
 pymanopt (numpy backend, hand-written derivatives) runs in the same process
 when it is installed; otherwise its rows are skipped with a note. Its
 optimizers: ``SteepestDescent``, ``ConjugateGradient(beta_rule="PolakRibiere")``
-(our default rule is PR+ too) and ``TrustRegions``, with default line searches
+(ours is set to PR+ as well) and ``TrustRegions``, with default line searches
 and radii. On SO(3) it uses the polar retraction and a plain-NumPy residual
 ``Log(RᵀRᵢ)``; its gradient is ``−Σ rᵢ``, which equals ``Σ J_Rᵀ rᵢ`` (since
 ``Jl(r)⁻ᵀ r = r``) without forming the Jacobians, and its trust region gets
@@ -52,6 +52,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -64,7 +65,11 @@ GRAD_RTOL = 1e-6
 MIN_STEP = 1e-12
 FD_STEP = 2.0**-14  # the finite-difference step of our TrustRegion, reused for pymanopt's Karcher Hessian
 
-OURS: dict[str, Callable[..., Any]] = {"gd": GradientDescent, "cg": ConjugateGradient, "tr": TrustRegion}
+OURS: dict[str, Callable[..., Any]] = {
+    "gd": GradientDescent,
+    "cg": partial(ConjugateGradient, beta="polak-ribiere"),  # the same rule as pymanopt's below
+    "tr": TrustRegion,
+}
 
 
 # ---- the problems -----------------------------------------------------------------
