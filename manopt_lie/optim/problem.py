@@ -22,7 +22,10 @@ class Problem:
       ``ehess2rhess(x, ∇f̄(x), ∇²f̄(x)[u], v)`` with ``u = to_ambient(x, v)``
       and ``ehess(x, u) = ∇²f̄(x)[u]``.
 
-    The callbacks are stored as given and called on every request (no caching).
+    The callbacks are stored as given. The Euclidean gradient at the most recent
+    point is remembered (keyed on the point's identity: optimizers never mutate
+    points in place), so the many Hessian-vector products of a trust-region
+    step evaluate ``egrad`` once.
 
     Parameters
     ----------
@@ -46,7 +49,7 @@ class Problem:
         If a callback is not callable.
     """
 
-    __slots__ = ("_cost", "_egrad", "_ehess", "_manifold", "_rgrad", "_rhess")
+    __slots__ = ("_cost", "_egrad", "_egrad_cache", "_ehess", "_manifold", "_rgrad", "_rhess")
 
     def __init__(
         self,
@@ -77,6 +80,13 @@ class Problem:
         self._manifold = manifold
         self._cost = cost
         self._egrad, self._rgrad, self._ehess, self._rhess = egrad, rgrad, ehess, rhess
+        self._egrad_cache: tuple[Point, Any] | None = None
+
+    def _euclidean_gradient(self, x: Point) -> Any:
+        assert self._egrad is not None
+        if self._egrad_cache is None or self._egrad_cache[0] is not x:
+            self._egrad_cache = (x, self._egrad(x))
+        return self._egrad_cache[1]
 
     def __repr__(self) -> str:
         given = [n for n in ("egrad", "rgrad", "ehess", "rhess") if getattr(self, "_" + n) is not None]
@@ -112,7 +122,7 @@ class Problem:
         if self._rgrad is not None:
             return self._rgrad(x)
         if self._egrad is not None:
-            return self._manifold.egrad2rgrad(x, self._egrad(x))
+            return self._manifold.egrad2rgrad(x, self._euclidean_gradient(x))
         raise NotImplementedError("Problem.grad: build the Problem with egrad=... or rgrad=...")
 
     def hess(self, x: Point, v: Tangent) -> Tangent:
@@ -127,5 +137,5 @@ class Problem:
             return self._rhess(x, v)
         if self._ehess is not None and self._egrad is not None:
             m = self._manifold
-            return m.ehess2rhess(x, self._egrad(x), self._ehess(x, m.to_ambient(x, v)), v)
+            return m.ehess2rhess(x, self._euclidean_gradient(x), self._ehess(x, m.to_ambient(x, v)), v)
         raise NotImplementedError("Problem.hess: build the Problem with ehess=... (and egrad) or rhess=...")

@@ -191,3 +191,15 @@ def test_settings_are_validated():
         TrustRegion(rho_prime=0.5)
     with pytest.raises(ValueError):
         GradientDescent(contraction=1.5)
+
+
+def test_hessian_products_reuse_the_euclidean_gradient():
+    calls = []
+    a = _symmetric(np.random.default_rng(0), 30)
+    counted = Problem(
+        Sphere(30), cost=lambda x: x @ a @ x, egrad=lambda x: calls.append(1) or 2 * a @ x,
+        ehess=lambda x, u: 2 * a @ u,
+    )  # fmt: skip
+    res = TrustRegion().solve(counted, counted.manifold.random_point(1))
+    assert res.success and res.nhev > 3 * res.ngev
+    assert len(calls) == res.ngev  # one egrad per point, however many Hessian products
