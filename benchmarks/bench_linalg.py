@@ -31,7 +31,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
@@ -44,18 +43,13 @@ import scipy.sparse.linalg as spla  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.bench_groups import median_time  # noqa: E402
 from manopt_lie.linalg import BlockStructure, CholeskySolver  # noqa: E402
 
 
 def median_ms(f: Callable[[], Any], repeat: int) -> float:
     """Median wall time of ``repeat`` calls in milliseconds, after one warm-up call."""
-    f()
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - start)
-    return 1e3 * statistics.median(times)
+    return 1e3 * median_time(f, repeat)
 
 
 def grid_pose_graph(shape: tuple[int, ...], closure_rate: float, rng: np.random.Generator) -> np.ndarray:
