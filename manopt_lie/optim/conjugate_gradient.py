@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .line_search import armijo, initial_step
+from .line_search import Backtracking
 from .optimizer import Optimizer, Run
 from .result import OptimizeResult, Status
 
@@ -48,11 +48,7 @@ class ConjugateGradient(Optimizer):
         if beta not in BETA_RULES:
             raise ValueError(f"ConjugateGradient: beta must be one of {BETA_RULES}, got {beta!r}")
         self.beta, self.restart_every, self.orthogonality = beta, restart_every, orthogonality
-        self.sufficient_decrease, self.contraction, self.max_backtracks = (
-            sufficient_decrease,
-            contraction,
-            max_backtracks,
-        )
+        self.line_search = Backtracking(sufficient_decrease, contraction, max_backtracks)
 
     def _beta(self, run: Run, x: Any, g: Any, g_norm: float, g_old: Any, g_old_norm: float, d_old: Any) -> float:
         y = g - g_old
@@ -81,12 +77,7 @@ class ConjugateGradient(Optimizer):
         status = Status.CALLBACK if run.record(x, f, g_norm) else run.stop_reason()
         while status is None:
             d_norm = run.norm(x, d)
-            alpha = initial_step(f, f_prev, slope, d_norm, m.typical_dist)
-            ls = armijo(
-                run.cost, m, x, f, d, d_norm, slope, alpha,
-                sufficient_decrease=self.sufficient_decrease, contraction=self.contraction,
-                max_backtracks=self.max_backtracks,
-            )  # fmt: skip
+            ls = self.line_search.search(run.cost, m, x, f, f_prev, d, d_norm, slope)
             if not ls.success:
                 status = Status.LINE_SEARCH_FAILED
                 break

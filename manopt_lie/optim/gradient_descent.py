@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .line_search import armijo, initial_step
+from .line_search import Backtracking
 from .optimizer import Optimizer, Run
 from .result import OptimizeResult, Status
 
@@ -31,13 +31,7 @@ class GradientDescent(Optimizer):
         **stopping: Any,
     ) -> None:
         super().__init__(**stopping)
-        if not (0 < sufficient_decrease < 1 and 0 < contraction < 1):
-            raise ValueError("GradientDescent: need 0 < sufficient_decrease < 1 and 0 < contraction < 1")
-        self.sufficient_decrease, self.contraction, self.max_backtracks = (
-            sufficient_decrease,
-            contraction,
-            max_backtracks,
-        )
+        self.line_search = Backtracking(sufficient_decrease, contraction, max_backtracks)
 
     def _solve(self, run: Run, x0: Any) -> OptimizeResult:
         m = run.manifold
@@ -47,12 +41,7 @@ class GradientDescent(Optimizer):
         f_prev: float | None = None
         status = Status.CALLBACK if run.record(x, f, g_norm) else run.stop_reason()
         while status is None:
-            alpha = initial_step(f, f_prev, -(g_norm**2), g_norm, m.typical_dist)
-            ls = armijo(
-                run.cost, m, x, f, -g, g_norm, -(g_norm**2), alpha,
-                sufficient_decrease=self.sufficient_decrease, contraction=self.contraction,
-                max_backtracks=self.max_backtracks,
-            )  # fmt: skip
+            ls = self.line_search.search(run.cost, m, x, f, f_prev, -g, g_norm, -(g_norm**2))
             if not ls.success:
                 status = Status.LINE_SEARCH_FAILED
                 break

@@ -63,3 +63,36 @@ def armijo(
             return LineSearchResult(y, f, alpha, alpha * d_norm, k + 1, True)
         alpha *= contraction
     return LineSearchResult(x0, f0, 0.0, 0.0, max_backtracks + 1, False)
+
+
+@dataclass(frozen=True)
+class Backtracking:
+    """The settings of :func:`armijo` with :func:`initial_step`'s first trial, shared by
+    the line-search optimizers."""
+
+    sufficient_decrease: float = 1e-4
+    contraction: float = 0.5
+    max_backtracks: int = 30
+
+    def __post_init__(self) -> None:
+        if not (0 < self.sufficient_decrease < 1 and 0 < self.contraction < 1):
+            raise ValueError("line search: need 0 < sufficient_decrease < 1 and 0 < contraction < 1")
+
+    def search(
+        self,
+        cost: Callable[[Any], float],
+        manifold: Manifold,
+        x0: Any,
+        f0: float,
+        f_prev: float | None,
+        d: Any,
+        d_norm: float,
+        slope: float,
+    ) -> LineSearchResult:
+        """Armijo backtracking along ``R_{x₀}(α d)`` from Manopt's adaptive first trial."""
+        alpha = initial_step(f0, f_prev, slope, d_norm, manifold.typical_dist)
+        return armijo(
+            cost, manifold, x0, f0, d, d_norm, slope, alpha,
+            sufficient_decrease=self.sufficient_decrease, contraction=self.contraction,
+            max_backtracks=self.max_backtracks,
+        )  # fmt: skip
