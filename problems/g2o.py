@@ -1,0 +1,1 @@
+"""g2o I/O (being written)."""

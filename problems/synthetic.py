@@ -1,0 +1,1 @@
+"""Synthetic instances (being written)."""
