@@ -45,7 +45,11 @@ class TrustRegion(Optimizer):
     max_inner_iterations : int, optional
         Default: the manifold's dimension.
     preconditioner : callable ``(x, r) ↦ z``, optional
-        A symmetric positive definite operator on tangent vectors approximating ``H⁻¹``.
+        A symmetric positive definite operator on tangent vectors approximating ``H⁻¹``
+        (the trust region is then measured in its norm). By default the problem's own
+        ``preconditioner`` method when it has one — for least-squares problems the
+        Gauss-Newton matrix ``(JᵀWJ)⁻¹`` — and none otherwise; pass
+        ``lambda x, r: r`` to switch it off.
     fd_step : float
         The finite-difference step, relative to ``‖v‖``.
     """
@@ -92,7 +96,7 @@ class TrustRegion(Optimizer):
     def _tcg(self, run: Run, x: Any, g: Any, hess: Callable[[Any], Any], radius: float) -> _InnerResult:
         """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region."""
         m = run.manifold
-        precon = self.preconditioner or (lambda _x, r: r)
+        precon = self.preconditioner or getattr(run.problem, "preconditioner", None) or (lambda _x, r: r)
         max_inner = self.max_inner_iterations or max(1, m.dim)
         eta, h_eta = m.zero_vector(x), m.zero_vector(x)
         r = g

@@ -1,0 +1,222 @@
+"""The two costs of relative measurements ``Z_e ≈ X_i⁻¹ X_j`` (CONVENTIONS §8), shared
+by pose graphs (SE(d)) and rotation averaging (SO(d)).
+
+- **geodesic**: ``½ Σ_e r_eᵀ Ω_e r_e`` with ``r_e = Log(Z_e⁻¹ X_i⁻¹ X_j)``;
+- **chordal**: ``Σ_e ‖(X_j − X_i Z_e) W_e‖_F²`` on the top ``d`` rows ``X = [R t]``
+  of the matrices, ``W_e = diag(√κ_e I_d, √τ_e)`` — i.e.
+  ``κ‖R_j − R_i R̃‖² + τ‖t_j − t_i − R_i t̃‖²`` (for rotations ``W_e = √κ_e I``).
+
+Each comes as a :class:`~manopt_lie.optim.Factor` (residual and right Jacobians
+of all edges in one vectorized call) for :class:`~manopt_lie.optim.LeastSquaresProblem`.
+The chordal cost is a quadratic form ``f(X) = tr(X Q Xᵀ)`` of the stacked
+``X = [X_1 … X_n]``, so :class:`ChordalHessian` gives its exact Riemannian
+Hessian from the Euclidean ``∇f = 2XQ`` and ``∇²f[V] = 2VQ``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from manopt_lie.lie.base import LieGroup
+from manopt_lie.manifolds import Power
+from manopt_lie.optim import Factor
+from manopt_lie.optim.losses import RobustLoss
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class IndefiniteInformationError(ValueError):
+    """Information matrices that are not positive definite, where the cost needs them to be."""
+
+
+def _rows(x: LieGroup) -> FloatArray:
+    """The top ``d`` rows ``[R t]`` of the matrices (for rotations, ``R`` itself)."""
+    m = x.as_matrix()
+    return m[..., : x.point_dim, :]  # type: ignore[attr-defined]
+
+
+# ---- information matrices --------------------------------------------------------------
+
+
+def nearest_positive_definite(information: FloatArray, rel_floor: float = 1e-9) -> FloatArray:
+    """The symmetric part of each ``Ω`` with eigenvalues clipped at ``rel_floor · λ_max``
+    (Higham's nearest symmetric positive semidefinite matrix, kept definite)."""
+    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
+    lam, v = np.linalg.eigh(sym)
+    floor = rel_floor * np.maximum(lam[..., -1:], np.finfo(float).tiny)
+    return np.einsum("...ij,...j,...kj->...ik", v, np.maximum(lam, floor), v)
+
+
+def indefinite_edges(information: FloatArray) -> IntArray:
+    """Indices of edges whose (symmetrized) ``Ω`` is not positive definite."""
+    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
+    return np.flatnonzero(np.linalg.eigvalsh(sym)[..., 0] <= 0.0)
+
+
+def information_sqrt(information: FloatArray, edge_names: Any = None, *, repair: bool = False) -> FloatArray:
+    """``Lᵀ`` with ``Ω = L Lᵀ`` (Cholesky), so ``‖Lᵀ r‖² = rᵀ Ω r``.
+
+    Raises
+    ------
+    IndefiniteInformationError
+        Naming the offending edges (``edge_names[e]`` if given), unless ``repair``
+        replaces them by :func:`nearest_positive_definite`.
+    """
+    bad = indefinite_edges(information)
+    if bad.size:
+        if not repair:
+            names = [str(edge_names[e]) if edge_names is not None else str(e) for e in bad[:10]]
+            more = f" and {bad.size - 10} more" if bad.size > 10 else ""
+            raise IndefiniteInformationError(
+                f"{bad.size} edges have information matrices that are not positive definite: "
+                f"{', '.join(names)}{more}; pass repair_information=True to use the nearest positive definite ones"
+            )
+        information = information.copy()
+        information[bad] = nearest_positive_definite(information[bad])
+    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
+    return np.swapaxes(np.linalg.cholesky(sym), -1, -2)
+
+
+def se_sync_weights(information: FloatArray, d: int) -> tuple[FloatArray, FloatArray]:
+    """SE-Sync's isotropic weights ``(κ, τ)`` from information matrices in ``(ρ, θ)`` order:
+    ``τ = d / tr(Ω_tt⁻¹)``; ``κ = Ω_θθ`` in 2-D, ``3 / (2 tr(Ω_RR⁻¹))`` in 3-D."""
+    omega_t = information[:, :d, :d]
+    tau = d / np.trace(np.linalg.inv(omega_t), axis1=1, axis2=2)
+    if d == 2:
+        kappa = information[:, 2, 2].copy()
+    else:
+        kappa = 3.0 / (2.0 * np.trace(np.linalg.inv(information[:, 3:, 3:]), axis1=1, axis2=2))
+    return kappa, tau
+
+
+# ---- the geodesic cost -------------------------------------------------------------------
+
+
+def geodesic_residuals(x: LieGroup, edges: IntArray, measurements: LieGroup) -> FloatArray:
+    """``r_e = Log(Z_e⁻¹ X_i⁻¹ X_j)``, shape ``(m, dim)``."""
+    return x[edges[:, 0]].between(x[edges[:, 1]]).rminus(measurements)
+
+
+def geodesic_cost(x: LieGroup, edges: IntArray, measurements: LieGroup, information: FloatArray) -> float:
+    """``½ Σ r_eᵀ Ω_e r_e``."""
+    r = geodesic_residuals(x, edges, measurements)
+    return 0.5 * float(np.einsum("ei,eij,ej->", r, information, r))
+
+
+def geodesic_factor(
+    edges: IntArray,
+    measurements: LieGroup,
+    sqrt_information: FloatArray,
+    loss: RobustLoss | str | None = None,
+    name: str = "geodesic",
+) -> Factor:
+    """Whitened residuals ``Lᵀ r_e`` with right Jacobians
+    ``∂r/∂X_j = Jr⁻¹(r)`` and ``∂r/∂X_i = −Jl⁻¹(r) Ad_{Z⁻¹}``
+    (from ``Jr⁻¹(r) Ad_{(X_i⁻¹X_j)⁻¹} = Jl⁻¹(r) Ad_{Exp r} Ad_{(X_i⁻¹X_j)⁻¹}``)."""
+    group = type(measurements)
+    z_inv = measurements.inverse()
+    ad_z_inv = z_inv.adjoint()  # constant per edge
+
+    def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
+        r = (z_inv @ xi.between(xj)).log()
+        rw = np.einsum("eij,ej->ei", sqrt_information, r)
+        if not jac:
+            return rw
+        return rw, [-sqrt_information @ group.jl_inv(r) @ ad_z_inv, sqrt_information @ group.jr_inv(r)]
+
+    return Factor(edges, residual, loss, name)
+
+
+# ---- the chordal cost ----------------------------------------------------------------------
+
+
+def chordal_cost(x: LieGroup, edges: IntArray, measurements: LieGroup, weights: FloatArray) -> float:
+    """``Σ_e ‖(X_j − X_i Z_e) W_e‖_F²`` with ``W_e = diag(weights[e])``."""
+    xr = _rows(x)
+    e = (xr[edges[:, 1]] - xr[edges[:, 0]] @ measurements.as_matrix()) * weights[:, None, :]
+    return float(np.einsum("eij,eij->", e, e))
+
+
+def chordal_factor(
+    edges: IntArray,
+    measurements: LieGroup,
+    weights: FloatArray,
+    loss: RobustLoss | str | None = None,
+    name: str = "chordal",
+) -> Factor:
+    """Residuals ``√2 vec((X_j − X_i Z) W)`` (so ``½‖r‖²`` is the chordal term) with
+    right Jacobians ``∂r/∂δ_jᵏ = √2 vec(X_j E_k W)``, ``∂r/∂δ_iᵏ = −√2 vec(X_i E_k Z W)``
+    for the generators ``E_k``."""
+    group = type(measurements)
+    z = measurements.as_matrix()
+    w = np.sqrt(2.0) * weights[:, None, :]  # (m, 1, c): scales columns
+    zw = z * w
+    basis = group.hat(np.eye(group.dim))  # (K, c, c)
+
+    def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
+        ri, rj = _rows(xi), _rows(xj)
+        r = (rj * w - ri @ zw).reshape(len(ri), -1)
+        if not jac:
+            return r
+        m, dim = len(ri), group.dim
+        j_j = np.einsum("eab,kbc,ec->eack", rj, basis, w[:, 0]).reshape(m, -1, dim)
+        j_i = -np.einsum("eab,kbc,ecf->eafk", ri, basis, zw).reshape(m, -1, dim)
+        return r, [j_i, j_j]
+
+    return Factor(edges, residual, loss, name)
+
+
+class ChordalHessian:
+    """The exact Riemannian Hessian of the chordal cost on ``Power(G, n)``.
+
+    ``f(X) = tr(X Q Xᵀ)`` with ``Q = Σ_e (e_j ⊗ I − e_i ⊗ Z_e) W_e² (e_j ⊗ I − e_i ⊗ Z_e)ᵀ``
+    (``n c × n c``, assembled once), so ``∇f = 2XQ`` and ``∇²f[V] = 2VQ``;
+    the manifold turns them into ``Hess f(X)[v]`` (its ``ehess2rhess``). Fixed
+    variables see the identity, as in the Gauss-Newton model.
+    """
+
+    def __init__(
+        self, manifold: Power, edges: IntArray, measurements: LieGroup, weights: FloatArray, fixed: IntArray
+    ) -> None:
+        n, c = manifold.shape[0], weights.shape[1]
+        z, w2 = measurements.as_matrix(), weights**2
+        zw2 = z * w2[:, None, :]  # Z W²
+        blocks = [
+            (edges[:, 1], edges[:, 1], np.einsum("ij,ei->eij", np.eye(c), w2)),
+            (edges[:, 0], edges[:, 0], zw2 @ np.swapaxes(z, 1, 2)),
+            (edges[:, 0], edges[:, 1], -zw2),
+            (edges[:, 1], edges[:, 0], -np.swapaxes(zw2, 1, 2)),
+        ]
+        a = np.arange(c)
+        shape = (len(edges), c, c)
+        rows = np.concatenate([np.broadcast_to(b[:, None, None] * c + a[:, None], shape).ravel() for b, _, _ in blocks])
+        cols = np.concatenate([np.broadcast_to(b[:, None, None] * c + a, shape).ravel() for _, b, _ in blocks])
+        vals = np.concatenate([v.ravel() for _, _, v in blocks])
+        self.Q = sp.csr_matrix((vals, (rows, cols)), shape=(n * c, n * c))
+        self.manifold, self.n, self.c = manifold, n, c
+        self.fixed = np.asarray(fixed, dtype=np.int64)
+
+    def _times_2q(self, v: FloatArray) -> FloatArray:
+        """``2 V Q`` for ``V`` of shape ``(n, d, c)``, zero-padded to ``(n, c, c)`` matrices."""
+        n, d, c = v.shape
+        out = np.zeros((n, c, c))
+        out[:, :d, :] = 2.0 * (self.Q @ v.transpose(0, 2, 1).reshape(n * c, d)).reshape(n, c, d).transpose(0, 2, 1)
+        return out
+
+    def egrad(self, x: LieGroup) -> FloatArray:
+        return self._times_2q(_rows(x))
+
+    def __call__(self, x: LieGroup, v: FloatArray) -> FloatArray:
+        v = np.array(v, dtype=np.float64)
+        v_fixed = v[self.fixed].copy()
+        v[self.fixed] = 0.0
+        d = x.point_dim  # type: ignore[attr-defined]
+        ehess = self._times_2q(self.manifold.to_ambient(x, v)[:, :d, :])
+        out = self.manifold.ehess2rhess(x, self.egrad(x), ehess, v)
+        out[self.fixed] = v_fixed
+        return out
