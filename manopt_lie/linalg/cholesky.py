@@ -49,7 +49,7 @@ class CholeskySolver:
         package is importable (2-8x faster than SuperLU on pose graphs, see
         ``benchmarks/bench_linalg.py``), SciPy's SuperLU otherwise.
     rtol : float
-        Relative residual tolerance of the checks below (default 1e-8).
+        Relative residual tolerance of the checks below (default 1e-6).
 
     Attributes
     ----------
@@ -70,15 +70,17 @@ class CholeskySolver:
     otherwise :class:`SingularSystemError` is raised. A pose graph with an
     unfixed gauge has pivots of rounding size: even when ``b`` lies in the
     range of ``H`` (so that ``H⁻¹b`` looks fine), ``H⁻¹z`` explodes and fails
-    the residual check. The price is that, with the default ``rtol``,
-    systems with condition number beyond about 1e9–1e10 count as singular;
-    loosen ``rtol`` for badly scaled problems. Pivot signs are not read
+    the residual check: measured on the shared pose graphs, an unfixed gauge
+    leaves a relative probe residual of 1–20, an anchored graph at most 2e-8
+    (``parking-garage``, condition number 1e11). The price is that, with the
+    default ``rtol``, systems with condition number beyond about 1e12–1e13
+    count as singular; loosen ``rtol`` for worse ones. Pivot signs are not read
     (neither backend exposes them cheaply), so an indefinite but
     well-conditioned ``H`` — impossible for ``JᵀWJ`` with ``w ≥ 0`` — is
     caught only when ``b`` or the probe meets negative curvature.
     """
 
-    def __init__(self, backend: str = "auto", *, rtol: float = 1e-8) -> None:
+    def __init__(self, backend: str = "auto", *, rtol: float = 1e-6) -> None:
         usable = available_backends()
         if backend == "auto":
             backend = usable[0]
