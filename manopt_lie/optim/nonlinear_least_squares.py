@@ -127,8 +127,9 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     ``ρ = (f(x) − f(R_x(δ))) / (½ δᵀ(λDδ − g))`` is positive.
 
     Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
-    ``ν ← 2``; on failure ``λ ← λν``, ``ν ← 2ν``. The initial damping is
-    ``initial_damping · max diag(H)``.
+    ``ν ← 2``; on failure ``λ ← λν``, ``ν ← 2ν``. Since ``D`` carries the scale
+    of ``H``, ``λ`` is dimensionless and starts at ``initial_damping`` (Ceres's
+    default initial trust region ``10⁴`` is ``λ = 10⁻⁴``).
     """
 
     def __init__(self, *, initial_damping: float = 1e-4, max_damping: float = 1e32, **stopping: Any) -> None:
@@ -138,7 +139,7 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         self.initial_damping, self.max_damping = initial_damping, max_damping
 
     def _initial_state(self, lin: Linearization) -> _Damping:
-        return _Damping(self.initial_damping * float(lin.hessian.diagonal().max()))
+        return _Damping(self.initial_damping)
 
     def _step(
         self, run: Run, problem: LeastSquaresProblem, solver: CholeskySolver, x: Any, lin: Linearization, state: Any
