@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
-from ._backends import BACKENDS, Backend, available_backends
+from ._backends import _PACKAGES, BACKENDS, Backend, available_backends
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
@@ -44,10 +44,11 @@ class CholeskySolver:
 
     Parameters
     ----------
-    backend : {"auto", "qdldl", "superlu"}
-        ``"auto"`` (the default) takes QDLDL when the optional ``qdldl``
-        package is importable (2-8x faster than SuperLU on pose graphs, see
-        ``benchmarks/bench_linalg.py``), SciPy's SuperLU otherwise.
+    backend : {"auto", "cholmod", "qdldl", "superlu"}
+        ``"auto"`` (the default) takes the first importable of CHOLMOD (optional
+        package ``cvxopt``), QDLDL (optional ``qdldl``) and SciPy's SuperLU; both
+        optional ones are 2-8x faster than SuperLU on pose graphs, and CHOLMOD's
+        supernodes another 4x on dense 3-D graphs (``benchmarks/bench_linalg.py``).
     rtol : float
         Relative residual tolerance of the checks below (default 1e-6).
 
@@ -87,7 +88,7 @@ class CholeskySolver:
         elif backend not in BACKENDS:
             raise ValueError(f"unknown backend {backend!r}; choose 'auto' or one of {sorted(BACKENDS)}")
         elif backend not in usable:
-            raise ValueError(f"backend {backend!r} needs the optional package {backend!r} (pip install {backend})")
+            raise ValueError(f"backend {backend!r} needs an optional package: pip install {_PACKAGES[backend]}")
         self.backend = backend
         self.rtol = float(rtol)
         self.n_analyses = 0

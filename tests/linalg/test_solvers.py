@@ -116,8 +116,8 @@ def test_rejects_bad_matrices(solver):
 
 
 def test_unknown_backend():
-    with pytest.raises(ValueError, match="unknown backend 'cholmod'"):
-        CholeskySolver("cholmod")
+    with pytest.raises(ValueError, match="unknown backend 'pardiso'"):
+        CholeskySolver("pardiso")
 
 
 # -- PCG -------------------------------------------------------------------
