@@ -128,11 +128,14 @@ class LevenbergMarquardt(NonlinearLeastSquares):
 
     Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
     ``ν ← 2``; on failure ``λ ← λν``, ``ν ← 2ν``. Since ``D`` carries the scale
-    of ``H``, ``λ`` is dimensionless and starts at ``initial_damping`` (Ceres's
-    default initial trust region ``10⁴`` is ``λ = 10⁻⁴``).
+    of ``H``, ``λ`` is dimensionless and starts at ``initial_damping``, by default
+    1e-6. Pose graphs' normal equations are ill-conditioned (condition 10⁸–10¹¹):
+    there Ceres's ``10⁻⁴`` freezes the weak directions for several iterations and
+    needed 2-3x the iterations of ``10⁻⁶`` (``benchmarks/bench_pose_graph.py``);
+    ``λ`` grows quickly when the model is poor.
     """
 
-    def __init__(self, *, initial_damping: float = 1e-4, max_damping: float = 1e32, **stopping: Any) -> None:
+    def __init__(self, *, initial_damping: float = 1e-6, max_damping: float = 1e32, **stopping: Any) -> None:
         super().__init__(**stopping)
         if not initial_damping > 0:
             raise ValueError(f"LevenbergMarquardt: initial_damping must be positive, got {initial_damping}")
