@@ -7,6 +7,7 @@ An edge ``e = (i, j)`` carries a measurement ``R̃_e ≈ R_iᵀ R_j`` and a weig
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,14 +15,30 @@ from numpy.typing import NDArray
 from manopt_lie import SO2, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie.base import LieGroup
+from manopt_lie.manifolds import LieGroupManifold, Power
+from manopt_lie.optim import LeastSquaresProblem
+from manopt_lie.optim.losses import RobustLoss
+
+from . import costs, initialization
+
+if TYPE_CHECKING:
+    from .pose_graph import PoseGraph
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
+COSTS = ("chordal", "geodesic")
+
+
 @dataclass(frozen=True, eq=False)
 class RotationAveraging:
     """A rotation-averaging instance with ``n`` rotations and ``m`` relative measurements.
+
+    Costs (CONVENTIONS §8): chordal ``Σ κ‖R_j − R_i R̃‖_F²`` and geodesic
+    ``½ Σ κ‖Log(R̃⁻¹R_iᵀR_j)‖²``; robust variants apply a loss to each edge's
+    squared residual (``"huber:0.1"``, or ``"l1:0.01"`` for the L1 averaging of
+    Chatterjee & Govindu by IRLS). Rotation ``0`` fixes the gauge.
 
     Parameters
     ----------
@@ -79,3 +96,63 @@ class RotationAveraging:
 
     def __repr__(self) -> str:
         return f"RotationAveraging({self.name!r}, {self.group.__name__}, n={self.n}, m={self.m})"
+
+    @property
+    def manifold(self) -> Power:
+        return Power(LieGroupManifold(self.group), self.n)
+
+    def _weights(self) -> FloatArray:
+        return np.repeat(np.sqrt(self.kappa)[:, None], self.d, axis=1)  # type: ignore[index]
+
+    def cost(self, x: LieGroup, cost: str = "chordal") -> float:
+        """The CONVENTIONS §8 value at rotations ``x``."""
+        self.manifold.check_point(x)
+        if cost == "chordal":
+            return costs.chordal_cost(x, self.edges, self.measurements, self._weights())
+        if cost == "geodesic":
+            r = costs.geodesic_residuals(x, self.edges, self.measurements)
+            return 0.5 * float(np.sum(self.kappa * np.einsum("ei,ei->e", r, r)))
+        raise ValueError(f"cost must be one of {COSTS}, got {cost!r}")
+
+    def problem(self, cost: str = "chordal", *, robust: RobustLoss | str | None = None) -> LeastSquaresProblem:
+        """The least-squares problem on ``Power(SO(d), n)`` with rotation 0 fixed; the
+        chordal one (without a robust loss) carries its exact Riemannian Hessian."""
+        fixed = np.array([0])
+        if cost == "chordal":
+            w = self._weights()
+            factor = costs.chordal_factor(self.edges, self.measurements, w, robust)
+            hessian = (
+                None
+                if robust is not None
+                else costs.ChordalHessian(self.manifold, self.edges, self.measurements, w, fixed)
+            )
+            return LeastSquaresProblem(self.manifold, [factor], fixed=fixed, hessian=hessian)
+        if cost == "geodesic":
+            sqrt_info = np.sqrt(self.kappa)[:, None, None] * np.eye(self.group.dim)  # type: ignore[index]
+            factor = costs.geodesic_factor(self.edges, self.measurements, sqrt_info, robust)
+            return LeastSquaresProblem(self.manifold, [factor], fixed=fixed)
+        raise ValueError(f"cost must be one of {COSTS}, got {cost!r}")
+
+    def chordal_initialization(self) -> LieGroup:
+        """Linear least squares on the rotation entries, projected onto SO(d)
+        (:func:`problems.initialization.chordal_rotations`), rotation 0 at ``I``."""
+        r = initialization.chordal_rotations(self.n, self.edges, self.measurements.as_matrix(), self.kappa)
+        return self.group.from_matrix(r)
+
+    def spanning_tree_initialization(self) -> LieGroup:
+        """Rotations composed along a spanning tree from rotation 0."""
+        return initialization.spanning_tree(self.group, self.n, self.edges, self.measurements)
+
+
+def from_pose_graph(graph: PoseGraph) -> RotationAveraging:
+    """The rotation part of a pose graph, with SE-Sync's rotation weights ``κ``."""
+    kappa, _ = graph.se_sync_weights
+    group = graph.group.rotation_group  # type: ignore[attr-defined]
+    return RotationAveraging(
+        group,
+        graph.edges,
+        graph.measurements.rotation(),
+        kappa,
+        n=graph.n,
+        name=f"{graph.name} (rotations)",  # type: ignore[attr-defined]
+    )

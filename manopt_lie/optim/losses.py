@@ -15,7 +15,12 @@ loss              ρ(s)                         w = ρ'(s)
 ``Cauchy(c)``     ``c² log(1 + s/c²)``         ``1/(1 + s/c²)``
 ``GemanMcClure``  ``c² s/(c² + s)``            ``c⁴/(c² + s)²``
 ``TruncatedL2``   ``min(s, c²)``               ``1`` if ``s < c²`` else ``0``
+``L1(c)``         ``2c²(√(1 + s/c²) − 1)``     ``1/√(1 + s/c²)``
 ================  ===========================  ==============================
+
+``L1`` is the smoothed absolute value (pseudo-Huber): ``½ρ ≈ c‖r‖`` once
+``‖r‖ ≫ c``, so IRLS with it is the L1 averaging of Chatterjee & Govindu with
+their weights ``1/‖r‖`` kept finite at ``r = 0``.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["RobustLoss", "Trivial", "Huber", "Cauchy", "GemanMcClure", "TruncatedL2", "parse_loss"]
+__all__ = ["RobustLoss", "Trivial", "Huber", "Cauchy", "GemanMcClure", "TruncatedL2", "L1", "parse_loss"]
 
 FloatArray = NDArray[np.float64]
 
@@ -108,17 +113,29 @@ class TruncatedL2(_Scaled):
         return (s < self.c**2).astype(np.float64)
 
 
+@dataclass(frozen=True)
+class L1(_Scaled):
+    """Smoothed absolute value: least squares below ``|r| ≈ c``, linear growth beyond."""
+
+    def rho(self, s: FloatArray) -> FloatArray:
+        return 2.0 * self.c**2 * (np.sqrt(1.0 + s / self.c**2) - 1.0)
+
+    def weight(self, s: FloatArray) -> FloatArray:
+        return 1.0 / np.sqrt(1.0 + s / self.c**2)
+
+
 _BY_NAME: dict[str, type[_Scaled]] = {
     "huber": Huber,
     "cauchy": Cauchy,
     "geman-mcclure": GemanMcClure,
     "truncated": TruncatedL2,
+    "l1": L1,
 }
 
 
 def parse_loss(spec: str | RobustLoss | None) -> RobustLoss:
     """A loss from ``None`` (plain least squares), an instance, or ``"name:c"``
-    such as ``"huber:1.0"`` (names: huber, cauchy, geman-mcclure, truncated)."""
+    such as ``"huber:1.0"`` (names: huber, cauchy, geman-mcclure, truncated, l1)."""
     if spec is None:
         return Trivial()
     if isinstance(spec, RobustLoss):

@@ -19,7 +19,7 @@ from manopt_lie.optim import (
     Status,
     TrustRegion,
 )
-from manopt_lie.optim.losses import Cauchy, GemanMcClure, Huber, TruncatedL2, parse_loss
+from manopt_lie.optim.losses import Cauchy, GemanMcClure, Huber, L1, TruncatedL2, parse_loss
 
 SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
 solvers = pytest.mark.parametrize("make", SOLVERS.values(), ids=SOLVERS.keys())
@@ -169,7 +169,7 @@ def test_parse_loss():
         parse_loss("huber:-1")
 
 
-@pytest.mark.parametrize("loss", [Huber(0.7), Cauchy(0.7), GemanMcClure(0.7), TruncatedL2(0.7)], ids=repr)
+@pytest.mark.parametrize("loss", [Huber(0.7), Cauchy(0.7), GemanMcClure(0.7), TruncatedL2(0.7), L1(0.7)], ids=repr)
 def test_loss_weights_are_derivatives(loss):
     s = np.linspace(0.01, 3.0, 50)
     s = s[np.abs(s - 0.49) > 1e-3]  # TruncatedL2 has a kink at c²
