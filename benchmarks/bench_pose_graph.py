@@ -1,0 +1,155 @@
+"""Pose-graph benchmark on the shared SE-Sync datasets (not a timed test).
+
+For each dataset (``$MANOPT_LIE_DATA`` or ``../shared/datasets``):
+
+- ``TrustRegion`` on the chordal (SE-Sync) cost from the chordal initialization:
+  iterations, time, final cost, the published optimum f* and the relative gap,
+  and the ratio of our time (initialization included) to the C++ SE-Sync time
+  the datasets README lists;
+- ``LevenbergMarquardt`` and ``GaussNewton`` on the geodesic cost from the same
+  initialization, and GTSAM's ``LevenbergMarquardtOptimizer`` in the same run
+  when ``gtsam`` is installed (optional), all stopped by GTSAM's default rule
+  (relative decrease of the cost below 1e-5) and all final costs evaluated with
+  our definition; the ratio is our time over GTSAM's.
+
+Times are medians of ``--repeat`` runs. ``python benchmarks/bench_pose_graph.py [--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from manopt_lie import SE3
+from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
+from problems import g2o
+from problems.pose_graph import PoseGraph
+
+# name: (published chordal f*, SE-Sync C++ time in s), from datasets/README.md.
+DATASETS: dict[str, tuple[float | None, float | None]] = {
+    "CSAIL": (3.170e1, 0.010),
+    "intel": (5.235e1, 0.071),
+    "manhattan": (6.431e3, 0.080),
+    "sphere2500": (1.687e3, 0.580),
+    "parking-garage": (1.263e0, 0.468),
+    "smallGrid3D": (None, None),
+}
+GTSAM_RULE = 1e-5  # GTSAM's default relativeErrorTol
+
+
+def data_dir() -> Path:
+    return Path(os.environ.get("MANOPT_LIE_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"))
+
+
+def median_run(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), out
+
+
+def gtsam_lm(path: Path, graph: PoseGraph, x0: Any, repeat: int) -> tuple[float, int, Any] | None:
+    """GTSAM's LM from ``x0`` with the anchor constrained; ``None`` without gtsam."""
+    try:
+        import gtsam
+    except ImportError:
+        return None
+    three = graph.group is SE3
+    factors, _ = gtsam.readG2o(str(path), three)
+    values = gtsam.Values()
+    m = x0.as_matrix()
+    for k, key in enumerate(graph.ids):
+        pose = gtsam.Pose3(m[k]) if three else gtsam.Pose2(m[k, 0, 2], m[k, 1, 2], np.arctan2(m[k, 1, 0], m[k, 0, 0]))
+        values.insert(int(key), pose)
+    anchor = int(graph.ids[graph.anchor])
+    prior = gtsam.PriorFactorPose3 if three else gtsam.PriorFactorPose2
+    fixed = values.atPose3(anchor) if three else values.atPose2(anchor)
+    factors.add(prior(anchor, fixed, gtsam.noiseModel.Constrained.All(graph.group.dim)))
+
+    def run() -> Any:
+        optimizer = gtsam.LevenbergMarquardtOptimizer(factors, values, gtsam.LevenbergMarquardtParams())
+        return optimizer, optimizer.optimize()
+
+    seconds, (optimizer, result) = median_run(run, repeat)
+    get = result.atPose3 if three else result.atPose2
+    poses = np.stack([get(int(key)).matrix() for key in graph.ids])
+    return seconds, optimizer.iterations(), graph.group.from_matrix(poses, project=True)
+
+
+def bench(name: str, repeat: int) -> list[dict[str, Any]]:
+    path = data_dir() / f"{name}.g2o"
+    graph = g2o.read(path)
+    published, se_sync_time = DATASETS[name]
+    init_time, x0 = median_run(graph.chordal_initialization, repeat)
+    rows: list[dict[str, Any]] = []
+    base = {"dataset": name, "n": graph.n, "m": graph.m}
+
+    seconds, res = median_run(lambda: TrustRegion().solve(graph.problem("chordal"), x0), repeat)
+    rows.append(
+        base
+        | {
+            "solver": "TR (chordal)", "iterations": res.nit, "time": seconds + init_time, "cost": res.fun,
+            "f*": published, "gap": None if published is None else (res.fun - published) / published,
+            "reference": "SE-Sync C++", "ratio": None if se_sync_time is None else (seconds + init_time) / se_sync_time,
+        }
+    )  # fmt: skip
+    peer = gtsam_lm(path, graph, x0, repeat)
+    for optimizer in (LevenbergMarquardt(rel_cost_decrease=GTSAM_RULE), GaussNewton(rel_cost_decrease=GTSAM_RULE)):
+        seconds, res = median_run(lambda: optimizer.solve(graph.problem("geodesic"), x0), repeat)
+        rows.append(
+            base
+            | {
+                "solver": f"{type(optimizer).__name__} (geodesic)", "iterations": res.nit, "time": seconds + init_time,
+                "cost": res.fun, "f*": None, "gap": None, "reference": "GTSAM LM",
+                "ratio": None if peer is None else seconds / peer[0],
+            }
+        )  # fmt: skip
+    if peer is not None:
+        seconds, iterations, poses = peer
+        rows.append(
+            base
+            | {
+                "solver": "GTSAM LM (geodesic)", "iterations": iterations, "time": seconds + init_time,
+                "cost": graph.cost(poses, "geodesic"), "f*": None, "gap": None, "reference": None, "ratio": None,
+            }
+        )  # fmt: skip
+    return rows
+
+
+def fmt(value: Any, spec: str) -> str:
+    return "—" if value is None else format(value, spec)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--datasets", nargs="*", default=list(DATASETS), choices=list(DATASETS))
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--json", type=Path, help="write the rows as JSON")
+    args = parser.parse_args()
+    if not data_dir().is_dir():
+        raise SystemExit(f"datasets not found at {data_dir()} (set MANOPT_LIE_DATA)")
+    rows = [row for name in args.datasets for row in bench(name, args.repeat)]
+    header = "| dataset | n | m | solver | iters | time (s) | final cost | f* | gap | ratio |"
+    print(header)
+    print("|---" * (header.count("|") - 1) + "|")
+    for r in rows:
+        ratio = "—" if r["ratio"] is None else f"{r['ratio']:.2f} vs {r['reference']}"
+        print(
+            f"| {r['dataset']} | {r['n']} | {r['m']} | {r['solver']} | {r['iterations']} | {r['time']:.3f} | "
+            f"{r['cost']:.7g} | {fmt(r['f*'], '.4g')} | {fmt(r['gap'], '.1e')} | {ratio} |"
+        )
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=2))
+
+
+if __name__ == "__main__":
+    main()
