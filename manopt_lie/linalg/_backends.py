@@ -138,7 +138,12 @@ class _QDLDL:
 
 
 class _CHOLMOD:
-    """CHOLMOD's supernodal ``LLᵀ`` of the lower triangle (through CVXOPT)."""
+    """CHOLMOD's supernodal ``LLᵀ`` of the lower triangle (through CVXOPT).
+
+    One CVXOPT sparse matrix is built at analysis; each factorization only
+    overwrites its values (``A.V``), in CVXOPT's column-major order, which is
+    the order of the lower triangle of a canonical CSC matrix.
+    """
 
     def __init__(self, indptr: IndexArray, indices: IndexArray) -> None:
         import cvxopt
@@ -147,24 +152,25 @@ class _CHOLMOD:
         self._cvxopt, self._cholmod = cvxopt, cholmod
         cols = _columns(indptr)
         self._lower = np.flatnonzero(indices >= cols)
-        self._rows = cvxopt.matrix(indices[self._lower].astype(np.int64))
-        self._cols = cvxopt.matrix(cols[self._lower].astype(np.int64))
-        self._n = indptr.size - 1
+        n = indptr.size - 1
+        values = surrogate_values(indptr, indices)[self._lower]
+        rows, cols = indices[self._lower].astype(np.int64), cols[self._lower].astype(np.int64)
+        self._A = cvxopt.spmatrix(cvxopt.matrix(values), cvxopt.matrix(rows), cvxopt.matrix(cols), (n, n))
+        stored_rows, stored_cols = np.array(self._A.I).ravel(), np.array(self._A.J).ravel()
+        if not (np.array_equal(stored_rows, rows) and np.array_equal(stored_cols, cols)):
+            raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
         saved = dict(cholmod.options)
         cholmod.options["supernodal"] = 2  # options are module-global: set for this analysis only
         try:
-            self._factor = cholmod.symbolic(self._matrix(surrogate_values(indptr, indices)), uplo="L")
+            self._factor = cholmod.symbolic(self._A, uplo="L")
         finally:
             cholmod.options.clear()
             cholmod.options.update(saved)
 
-    def _matrix(self, data: FloatArray) -> object:
-        values = self._cvxopt.matrix(np.ascontiguousarray(data[self._lower], dtype=np.float64))
-        return self._cvxopt.spmatrix(values, self._rows, self._cols, (self._n, self._n))
-
     def factorize(self, data: FloatArray) -> None:
+        self._A.V = self._cvxopt.matrix(np.ascontiguousarray(data[self._lower], dtype=np.float64))
         try:
-            self._cholmod.numeric(self._matrix(data), self._factor)
+            self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:
             raise SingularSystemError(f"CHOLMOD factorization failed: not positive definite ({err})") from None
 
