@@ -109,8 +109,8 @@ def bench(name: str, repeat: int) -> list[dict[str, Any]]:
         rows.append(
             base
             | {
-                "solver": f"{type(optimizer).__name__} (geodesic)", "iterations": res.nit, "init": init_time, "time": seconds,
-                "cost": res.fun, "f*": None, "gap": None, "reference": "GTSAM LM",
+                "solver": f"{type(optimizer).__name__} (geodesic)", "iterations": res.nit, "init": init_time,
+                "time": seconds, "cost": res.fun, "f*": None, "gap": None, "reference": "GTSAM LM",
                 "ratio": None if peer is None else seconds / peer[0],
             }
         )  # fmt: skip
@@ -145,8 +145,8 @@ def main() -> None:
     for r in rows:
         ratio = "—" if r["ratio"] is None else f"{r['ratio']:.2f} vs {r['reference']}"
         print(
-            f"| {r['dataset']} | {r['n']} | {r['m']} | {r['solver']} | {r['iterations']} | {r['init']:.3f} | {r['time']:.3f} | "
-            f"{r['cost']:.7g} | {fmt(r['f*'], '.4g')} | {fmt(r['gap'], '.1e')} | {ratio} |"
+            f"| {r['dataset']} | {r['n']} | {r['m']} | {r['solver']} | {r['iterations']} | {r['init']:.3f} | "
+            f"{r['time']:.3f} | {r['cost']:.7g} | {fmt(r['f*'], '.4g')} | {fmt(r['gap'], '.1e')} | {ratio} |"
         )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=2))
