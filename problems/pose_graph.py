@@ -219,19 +219,13 @@ class PoseGraph:
     def chordal_initialization(self) -> LieGroup:
         """Carlone et al. (2015): rotations from the linear least squares relaxation of
         ``Σ κ‖R_j − R_i R̃‖²`` projected onto SO(d), then translations from the linear
-        least squares ``Σ τ‖t_j − t_i − R_i t̃‖²``, with SE-Sync's ``κ, τ``."""
+        least squares ``Σ τ‖t_j − t_i − R_i t̃‖²``, with SE-Sync's ``κ, τ`` (their magnitudes, so that
+        graphs with indefinite information matrices still initialize)."""
         initialization.check_connected(self.n, self.edges, self.ids, self.anchor)
         kappa, tau = self.se_sync_weights
-        rotations = self.measurements.rotation().as_matrix()  # type: ignore[attr-defined]
-        r = initialization.chordal_rotations(self.n, self.edges, rotations, np.abs(kappa), self.anchor)
-        t = initialization.chordal_translations(
-            self.n,
-            self.edges,
-            r,
-            self.measurements.translation(),
-            np.abs(tau),
-            self.anchor,  # type: ignore[attr-defined]
-        )
+        z, d = self.measurements.as_matrix(), self.d
+        r = initialization.chordal_rotations(self.n, self.edges, z[:, :d, :d], np.abs(kappa), self.anchor)
+        t = initialization.chordal_translations(self.n, self.edges, r, z[:, :d, d], np.abs(tau), self.anchor)
         x = self.group.from_rotation_translation(self.group.rotation_group.from_matrix(r), t)  # type: ignore[attr-defined]
         return self._in_source_frame(x)
 

@@ -57,7 +57,7 @@ class RotationAveraging:
     group: type[LieGroup]
     edges: IntArray
     measurements: LieGroup
-    kappa: FloatArray | None = None
+    kappa: FloatArray = None  # type: ignore[assignment]  # default: ones, set in __post_init__
     n: int = -1
     name: str = "rotation averaging"
 
@@ -102,7 +102,7 @@ class RotationAveraging:
         return Power(LieGroupManifold(self.group), self.n)
 
     def _weights(self) -> FloatArray:
-        return np.repeat(np.sqrt(self.kappa)[:, None], self.d, axis=1)  # type: ignore[index]
+        return np.repeat(np.sqrt(self.kappa)[:, None], self.d, axis=1)
 
     def cost(self, x: LieGroup, cost: str = "chordal") -> float:
         """The CONVENTIONS §8 value at rotations ``x``."""
@@ -128,7 +128,7 @@ class RotationAveraging:
             )
             return LeastSquaresProblem(self.manifold, [factor], fixed=fixed, hessian=hessian)
         if cost == "geodesic":
-            sqrt_info = np.sqrt(self.kappa)[:, None, None] * np.eye(self.group.dim)  # type: ignore[index]
+            sqrt_info = np.sqrt(self.kappa)[:, None, None] * np.eye(self.group.dim)
             factor = costs.geodesic_factor(self.edges, self.measurements, sqrt_info, robust)
             return LeastSquaresProblem(self.manifold, [factor], fixed=fixed)
         raise ValueError(f"cost must be one of {COSTS}, got {cost!r}")
@@ -147,12 +147,7 @@ class RotationAveraging:
 def from_pose_graph(graph: PoseGraph) -> RotationAveraging:
     """The rotation part of a pose graph, with SE-Sync's rotation weights ``κ``."""
     kappa, _ = graph.se_sync_weights
-    group = graph.group.rotation_group  # type: ignore[attr-defined]
-    return RotationAveraging(
-        group,
-        graph.edges,
-        graph.measurements.rotation(),
-        kappa,
-        n=graph.n,
-        name=f"{graph.name} (rotations)",  # type: ignore[attr-defined]
-    )
+    d = graph.d
+    group = SO2 if d == 2 else SO3
+    rotations = group.from_matrix(graph.measurements.as_matrix()[:, :d, :d])
+    return RotationAveraging(group, graph.edges, rotations, kappa, n=graph.n, name=f"{graph.name} (rotations)")
