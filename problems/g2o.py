@@ -21,7 +21,12 @@ integer), a non-finite number, a quaternion whose norm is not 1 within
 self-loops, edges or ``FIX`` lines naming a vertex that the file does not
 define raise :class:`ParseError` with the file name and line number.
 Information matrices that are not positive definite are accepted (real data
-has them); :func:`lint` reports them.
+has them); :func:`lint` reports them, with duplicate edges, vertices without
+edges and vertices not connected to the anchor.
+
+:func:`write` puts out ``repr``-exact numbers and the original ids, such that
+``write ∘ read ∘ write = write`` (the text is a fixed point) and translations
+and information matrices read back bit for bit.
 """
 
 from __future__ import annotations
@@ -128,7 +133,7 @@ def read(path_or_file: PathOrFile, *, name: str | None = None, quaternion_tol: f
     Raises
     ------
     ParseError
-        On the first malformed line (see the module docstring), with ``filename``
+        On the earliest malformed line (see the module docstring), with ``filename``
         and ``lineno``.
     """
     if isinstance(path_or_file, str | os.PathLike):
@@ -380,7 +385,7 @@ def dumps(graph: PoseGraph, poses: LieGroup | None = None) -> str:
         if not isinstance(poses, group) or poses.batch_shape != (graph.n,):
             raise ShapeError(f"{graph.name}: poses must be {group.__name__} with batch shape ({graph.n},)")
         vals = _pose_fields(poses)
-        _check_finite(vals, graph.name, "poses", ids[:, None])
+        _check_finite(vals, f"{graph.name}: non-finite poses at vertex ids", ids)
         _lines(out, vertex_tag, ids[:, None], vals)
     else:
         lonely = np.setdiff1d(ids, ids[graph.edges])
@@ -393,7 +398,7 @@ def dumps(graph: PoseGraph, poses: LieGroup | None = None) -> str:
     k = group.dim
     upper = np.triu_indices(k)
     vals = np.concatenate([_pose_fields(graph.measurements), graph.information[:, upper[0], upper[1]]], axis=1)
-    _check_finite(vals, graph.name, "measurements", ids[graph.edges])
+    _check_finite(vals, f"{graph.name}: non-finite measurements on edges", ids[graph.edges])
     _lines(out, edge_tag, ids[graph.edges], vals)
     return out.getvalue()
 
@@ -404,10 +409,10 @@ def _lines(out: io.StringIO, tag: str, ids: IntArray, vals: FloatArray) -> None:
         out.write(f"{tag} {' '.join(map(str, row_ids))} {' '.join(map(repr, row))}\n")
 
 
-def _check_finite(vals: FloatArray, name: str, what: str, ids: IntArray) -> None:
+def _check_finite(vals: FloatArray, message: str, ids: IntArray) -> None:
     bad = np.flatnonzero(~np.isfinite(vals).all(axis=1))
     if bad.size:
-        raise NonFiniteError(f"{name}: non-finite {what} at vertex ids {ids[bad[:10]].tolist()}")
+        raise NonFiniteError(f"{message} {ids[bad[:10]].tolist()}")
 
 
 def _pose_fields(x: LieGroup) -> FloatArray:
@@ -450,13 +455,13 @@ def _quaternion_step(q: FloatArray) -> FloatArray:
 
 
 def _stable(start: FloatArray, step: Callable[[FloatArray], FloatArray], iterations: int = 24) -> FloatArray:
-    """A representation ``c`` of each row such that writing, reading and writing again
-    gives ``c`` back.
+    """Representations ``(r, p)`` that writing reproduces after a read: ``W ∘ read ∘ W = W``.
 
-    ``step`` is write ∘ read on representations ``(r, p)``. Almost every ``start`` is a
-    fixed point (``step(c) == c``); the rest are iterated until they reach a cycle,
-    represented by its lexicographically least member, which every start in the cycle
-    maps to. So ``step`` of the returned rows leads back to the same rows.
+    Writing rounds a rotation to ``start``; ``step`` is write ∘ read on representations.
+    Almost every ``start`` is a fixed point, ``step(c) == c``. The others are iterated
+    into a cycle (of up to 4 members; none longer has been seen), represented by its
+    lexicographically least member ``a``. Re-writing the rotation read from ``a`` starts
+    at ``step(a)``, on the same cycle, so it ends at ``a`` again.
     """
     nxt = step(start)
     moving = np.flatnonzero((nxt != start).any(axis=1))
@@ -552,26 +557,31 @@ class LintReport:
                 f"{i}→{j} (λmin {lam:.3g})"
                 for (i, j), lam in zip(self.indefinite_ids, self.min_eigenvalues, strict=True)
             ]
-            lines.append(f"  {self.indefinite.size} information matrices not positive definite: {_some(items)}")
+            what = _count(self.indefinite.size, "information matrix", "information matrices")
+            lines.append(f"  {what} not positive definite: {_some(items)}")
         if self.asymmetric.size:
-            lines.append(f"  {self.asymmetric.size} information matrices not symmetric: edges {_some(self.asymmetric)}")
+            what = _count(self.asymmetric.size, "information matrix", "information matrices")
+            lines.append(f"  {what} not symmetric: edges {_some(self.asymmetric)}")
         if self.duplicates.size:
-            items = [f"{i}→{j}" for i, j in self.duplicate_ids]
-            lines.append(f"  {self.duplicates.size} duplicate edges: {_some(items)}")
+            what = _count(self.duplicates.size, "duplicate edge", "duplicate edges")
+            lines.append(f"  {what}: {_some(f'{i}→{j}' for i, j in self.duplicate_ids)}")
         if self.isolated.size:
-            lines.append(f"  {self.isolated.size} vertices without edges: {_some(self.isolated)}")
+            lines.append(f"  {_count(self.isolated.size, 'vertex', 'vertices')} without edges: {_some(self.isolated)}")
         if self.unreachable.size:
-            lines.append(
-                f"  not connected: {self.unreachable.size} vertices unreachable from vertex {self.anchor}: "
-                f"{_some(self.unreachable)}"
-            )
+            what = _count(self.unreachable.size, "vertex", "vertices")
+            lines.append(f"  not connected: {what} unreachable from vertex {self.anchor}: {_some(self.unreachable)}")
         return "\n".join(lines)
 
 
+def _count(k: int, singular: str, plural: str) -> str:
+    return f"{k} {singular if k == 1 else plural}"
+
+
 def _some(items: Iterable[Any], k: int = 10) -> str:
-    items = [str(i) for i in items]
-    more = f", … ({len(items) - k} more)" if len(items) > k else ""
-    return ", ".join(items[:k]) + more
+    """The first ``k`` items, comma-separated, and how many more there are."""
+    texts = [str(i) for i in items]
+    more = f", … ({len(texts) - k} more)" if len(texts) > k else ""
+    return ", ".join(texts[:k]) + more
 
 
 def lint(graph_or_path: PoseGraph | str | os.PathLike[str]) -> LintReport:

@@ -131,7 +131,7 @@ def test_pose_graph_validates_its_arrays(rng):
         PoseGraph(SE3, edges, SE2.random(rng, (2,)), info)
     with pytest.raises(ValueError, match="self-loop"):
         PoseGraph(SE3, np.array([[0, 1], [1, 1]]), z, info)
-    with pytest.raises(ValueError, match="0..1"):
+    with pytest.raises(ValueError, match=r"0\.\.1"):
         PoseGraph(SE3, edges, z, info, ids=np.array([5, 6]))
     with pytest.raises(ValueError, match="non-finite"):
         PoseGraph(SE3, edges, z, np.where(np.eye(6) > 0, np.nan, 0.0)[None].repeat(2, 0))
