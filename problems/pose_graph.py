@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from manopt_lie import SE2, SE3
 from manopt_lie.errors import ShapeError
+from manopt_lie.lie._matrix import assemble
 from manopt_lie.lie.base import LieGroup
 from manopt_lie.manifolds import LieGroupManifold, Power
 from manopt_lie.optim import LeastSquaresProblem
@@ -56,7 +57,7 @@ class PoseGraph:
     edges: IntArray
     measurements: LieGroup
     information: FloatArray
-    ids: IntArray | None = None
+    ids: IntArray = None  # type: ignore[assignment]  # default 0..n-1, set in __post_init__
     poses: LieGroup | None = None
     fixed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     name: str = "pose graph"
@@ -108,7 +109,7 @@ class PoseGraph:
     @property
     def n(self) -> int:
         """Number of vertices."""
-        return len(self.ids)  # type: ignore[arg-type]
+        return len(self.ids)
 
     @property
     def m(self) -> int:
@@ -147,7 +148,7 @@ class PoseGraph:
 
     def edge_names(self, edges: Any) -> list[str]:
         """``"i→j"`` in the source's vertex ids, for messages."""
-        ij = self.ids[self.edges[np.asarray(edges, dtype=np.int64)]]  # type: ignore[index]
+        ij = self.ids[self.edges[np.asarray(edges, dtype=np.int64)]]
         return [f"{a}→{b}" for a, b in ij]
 
     # ---- costs and problems --------------------------------------------------------
@@ -226,7 +227,7 @@ class PoseGraph:
         z, d = self.measurements.as_matrix(), self.d
         r = initialization.chordal_rotations(self.n, self.edges, z[:, :d, :d], np.abs(kappa), self.anchor)
         t = initialization.chordal_translations(self.n, self.edges, r, z[:, :d, d], np.abs(tau), self.anchor)
-        x = self.group.from_rotation_translation(self.group.rotation_group.from_matrix(r), t)  # type: ignore[attr-defined]
+        x = self.group.from_matrix(assemble(r, t))
         return self._in_source_frame(x)
 
     # ---- checks --------------------------------------------------------------------
