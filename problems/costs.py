@@ -115,19 +115,19 @@ def geodesic_factor(
     loss: RobustLoss | str | None = None,
     name: str = "geodesic",
 ) -> Factor:
-    """Whitened residuals ``Lᵀ r_e`` with right Jacobians
-    ``∂r/∂X_j = Jr⁻¹(r)`` and ``∂r/∂X_i = −Jl⁻¹(r) Ad_{Z⁻¹}``
-    (from ``Jr⁻¹(r) Ad_{(X_i⁻¹X_j)⁻¹} = Jl⁻¹(r) Ad_{Exp r} Ad_{(X_i⁻¹X_j)⁻¹}``)."""
+    """Whitened residuals ``Lᵀ r_e`` with right Jacobians ``∂r/∂X_j = Jr⁻¹(r)`` and
+    ``∂r/∂X_i = −Jr⁻¹(r) Ad_{Y⁻¹}``, ``Y = X_i⁻¹X_j`` (one ``Jr⁻¹`` per edge)."""
     group = type(measurements)
     z_inv = measurements.inverse()
-    ad_z_inv = z_inv.adjoint()  # constant per edge
 
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
-        r = (z_inv @ xi.between(xj)).log()
+        y = xi.between(xj)
+        r = (z_inv @ y).log()
         rw = np.einsum("eij,ej->ei", sqrt_information, r)
         if not jac:
             return rw
-        return rw, [-sqrt_information @ group.jl_inv(r) @ ad_z_inv, sqrt_information @ group.jr_inv(r)]
+        j_j = sqrt_information @ group.jr_inv(r)
+        return rw, [-j_j @ y.inverse().adjoint(), j_j]
 
     return Factor(edges, residual, loss, name)
 
