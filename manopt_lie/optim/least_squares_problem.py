@@ -100,7 +100,7 @@ class LeastSquaresProblem(Problem):
         :meth:`hess` (the trust region) instead of the Gauss-Newton model.
     """
 
-    __slots__ = ("_cache", "_dim", "_factors", "_factorized", "_fixed", "_n", "_solver", "_structure")
+    __slots__ = ("_cache", "_dim", "_factorized", "_factors", "_fixed", "_n", "_solver", "_structure")
 
     def __init__(
         self,
@@ -131,6 +131,15 @@ class LeastSquaresProblem(Problem):
         self._factorized: Any = None  # the point whose Gauss-Newton matrix the solver holds
         rhess = hessian if hessian is not None else self._gauss_newton_product
         super().__init__(manifold, self._evaluate_cost, rgrad=self._evaluate_grad, rhess=rhess)
+
+    @classmethod
+    def from_casadi(  # type: ignore[override]
+        cls, manifold: Power, variables: Any, residual: Any = None, **options: Any
+    ) -> LeastSquaresProblem:
+        """Symbolic residuals: see :func:`manopt_lie.casadi.least_squares_from_casadi`."""
+        from ..casadi.problems import least_squares_from_casadi
+
+        return least_squares_from_casadi(manifold, variables, residual, **options)
 
     @property
     def factors(self) -> tuple[Factor, ...]:

@@ -88,6 +88,13 @@ class Problem:
             self._egrad_cache = (x, self._egrad(x))
         return self._egrad_cache[1]
 
+    @classmethod
+    def from_casadi(cls, manifold: Manifold, cost: Any, **options: Any) -> Problem:
+        """A problem from a symbolic CasADi cost: see :func:`manopt_lie.casadi.problem_from_casadi`."""
+        from ..casadi.problems import problem_from_casadi  # lazy: avoids a circular import
+
+        return problem_from_casadi(manifold, cost, **options)
+
     def __repr__(self) -> str:
         given = [n for n in ("egrad", "rgrad", "ehess", "rhess") if getattr(self, "_" + n) is not None]
         return f"Problem({self._manifold!r}{''.join(', ' + n for n in given)})"

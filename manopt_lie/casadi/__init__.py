@@ -1,0 +1,28 @@
+"""CasADi twins: symbolic Lie groups and symbolic costs with exact derivatives.
+
+* :mod:`.lie` — ``SymSO2``, ``SymSO3``, ``SymSE2``, ``SymSE3``: ``exp``, ``log``,
+  ``compose``, ``inverse``, ``act``, ``rplus``, ``rminus``, … on CasADi matrices,
+  agreeing with the numpy kernels to round-off;
+* :mod:`.problems` — :func:`problem_from_casadi` and
+  :func:`least_squares_from_casadi`: a cost or residual written once with those
+  operations becomes a :class:`~manopt_lie.optim.Problem` (Riemannian gradient
+  and Hessian) or a :class:`~manopt_lie.optim.LeastSquaresProblem` (right
+  Jacobians), evaluated on batches by mapped ``casadi.Function``\\ s.
+"""
+
+from .lie import Matrix, SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
+from .problems import SymbolicFactor, SymbolicTerm, least_squares_from_casadi, problem_from_casadi
+
+__all__ = [
+    "Matrix",
+    "SymbolicGroup",
+    "SymSO2",
+    "SymSO3",
+    "SymSE2",
+    "SymSE3",
+    "symbolic",
+    "SymbolicTerm",
+    "SymbolicFactor",
+    "problem_from_casadi",
+    "least_squares_from_casadi",
+]

@@ -1,0 +1,545 @@
+"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices.
+
+Elements are CasADi matrices in the numpy groups' matrix form (CONVENTIONS §2):
+rotations ``d×d``, rigid motions ``(d+1)×(d+1)`` homogeneous matrices whose
+last row is built from constants. Tangents are column vectors ``dim×1`` in the
+order ``(ρ, θ)``, translation first. Every operation accepts ``SX``, ``MX`` or
+``DM`` (numbers — numpy arrays and lists are converted to ``DM``) and returns
+the same kind, so an expression can be differentiated with
+``casadi.jacobian``/``casadi.hessian`` or compiled into a ``casadi.Function``.
+
+The formulas, thresholds and series are those of the numpy kernels
+(``manopt_lie.lie._so3`` and friends), written with ``casadi.if_else`` instead
+of ``np.where``; numbers agree with them to round-off. Each small-angle branch
+is selected on the *squared* angle, and the closed form is evaluated at a safe
+argument (``1``) wherever the series is selected, so no branch divides by zero
+or differentiates ``√t`` at ``t = 0``: values *and derivatives of every order*
+are finite at the identity.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from math import factorial
+from typing import Any, ClassVar, TypeAlias
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ShapeError
+from ..lie import SE2, SE3, SO2, SO3, LieGroup
+
+__all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix"]
+
+# A CasADi SX, MX or DM matrix. Typed ``Any``: casadi's stubs do not type arithmetic across the three.
+Matrix: TypeAlias = Any
+_CASADI = (ca.SX, ca.MX, ca.DM)
+_TERMS = range(6)
+# Bernoulli numbers B₂ … B₁₂, for the series of x·cot(x) (as in ``lie._series``).
+_BERNOULLI = (1 / 6, -1 / 30, 1 / 42, -1 / 30, 5 / 66, -691 / 2730)
+
+
+def _matrix(a: Any, name: str) -> Matrix:
+    """``a`` as a CasADi matrix (numbers become ``DM``)."""
+    if isinstance(a, _CASADI):
+        return a
+    try:
+        return ca.DM(np.asarray(a, dtype=np.float64))
+    except (TypeError, ValueError) as err:
+        raise TypeError(f"{name}: expected a CasADi SX/MX/DM matrix or numbers, got {type(a).__name__}") from err
+
+
+def _column(tau: Any, n: int, name: str) -> Matrix:
+    """A tangent (or point) as an ``n×1`` column; a row or a flat array of ``n`` numbers is accepted."""
+    t = _matrix(tau, name)
+    if t.numel() != n or min(t.shape) != 1:
+        raise ShapeError(f"{name}: expected a vector of {n} entries, got a {t.shape[0]}×{t.shape[1]} matrix")
+    return t if t.shape == (n, 1) else ca.reshape(t, n, 1)
+
+
+def _square(m: Any, k: int, name: str) -> Matrix:
+    a = _matrix(m, name)
+    if a.shape != (k, k):
+        raise ShapeError(f"{name}: expected a {k}×{k} matrix, got {a.shape[0]}×{a.shape[1]}")
+    return a
+
+
+# ---- coefficient functions of the angle (``lie._series``), stable at 0 --------------------
+
+
+def _blend(
+    t: Matrix, threshold: float, coefficients: Sequence[float], closed: Callable[[Matrix], Matrix], theta: Any = None
+) -> Matrix:
+    """``Σ_j c_j t^j`` (Horner, ``t = θ²``) where ``θ < threshold``, else ``closed(θ)``.
+
+    ``theta`` is the angle the closed form takes (any sign: the closed forms
+    are even); by default ``√t``. In the series branch the closed form sees
+    ``θ = 1``, so neither it nor its derivatives are ever singular.
+    """
+    small = t < threshold * threshold
+    series = ca.DM(coefficients[-1])
+    for c in coefficients[-2::-1]:
+        series = series * t + c
+    safe = ca.sqrt(ca.if_else(small, 1.0, t)) if theta is None else ca.if_else(small, 1.0, theta)
+    return ca.if_else(small, series, closed(safe))
+
+
+def sinc(t: Matrix, theta: Any = None) -> Matrix:
+    """``sin θ / θ`` of ``t = θ²``."""
+    return _blend(t, 0.3, [(-1) ** j / factorial(2 * j + 1) for j in _TERMS], lambda th: ca.sin(th) / th, theta)
+
+
+def cosc(t: Matrix, theta: Any = None) -> Matrix:
+    """``(1 − cos θ) / θ² = 2 sin²(θ/2) / θ²`` of ``t = θ²``."""
+    coefficients = [(-1) ** j / factorial(2 * j + 2) for j in _TERMS]
+    return _blend(t, 0.3, coefficients, lambda th: 2.0 * (ca.sin(0.5 * th) / th) ** 2, theta)
+
+
+def sinc3(t: Matrix, theta: Any = None) -> Matrix:
+    """``(θ − sin θ) / θ³`` of ``t = θ²``."""
+    coefficients = [(-1) ** j / factorial(2 * j + 3) for j in _TERMS]
+    return _blend(t, 0.5, coefficients, lambda th: (th - ca.sin(th)) / th**3, theta)
+
+
+def jinv_coef(t: Matrix, theta: Any = None) -> Matrix:
+    """``1/θ² − cot(θ/2)/(2θ)`` of ``t = θ²``: the ``[θ]×²`` coefficient of ``Jr(θ)⁻¹``."""
+    coefficients = [(-1) ** j * _BERNOULLI[j] / factorial(2 * j + 2) for j in _TERMS]
+    closed = lambda th: 1.0 / th**2 - ca.cos(0.5 * th) / (2.0 * th * ca.sin(0.5 * th))
+    return _blend(t, 0.3, coefficients, closed, theta)
+
+
+# ---- the groups -----------------------------------------------------------------------------
+
+
+class SymbolicGroup:
+    """A matrix Lie group acting on CasADi matrices: classmethods only, no instances.
+
+    Subclasses supply ``exp``, ``log``, ``hat``, ``vee``, ``compose``,
+    ``inverse``, ``act``, ``adjoint`` and ``from_matrix``; the deduced
+    operations (``rplus``, ``rminus``, ``lplus``, ``lminus``, ``between``)
+    are written once here (CONVENTIONS §3).
+
+    Class attributes
+    ----------------
+    group : type[LieGroup]
+        The numpy twin (``SO3`` for ``SymSO3``).
+    dim : int
+        Tangent dimension.
+    size : int
+        Side of the element matrix (``d`` or ``d + 1``).
+    """
+
+    group: ClassVar[type[LieGroup]]
+    dim: ClassVar[int]
+    size: ClassVar[int]
+
+    @classmethod
+    def _element(cls, x: Any, name: str = "X") -> Matrix:
+        return _square(x, cls.size, name)
+
+    @classmethod
+    def _tangent(cls, tau: Any, name: str = "tau") -> Matrix:
+        return _column(tau, cls.dim, name)
+
+    @classmethod
+    def identity(cls) -> ca.DM:
+        """The identity matrix of the group's size."""
+        return ca.DM.eye(cls.size)
+
+    @classmethod
+    def from_matrix(cls, m: Any) -> Matrix:
+        """The element whose matrix is ``m``, rebuilt structurally (no validation): ``m`` itself
+        for rotations; for SE(n), ``[[R, t], [0, 1]]`` from the blocks of ``m``, so that the
+        last row is constant even when ``m`` is a matrix of free symbols."""
+        return cls._element(m)
+
+    # ---- deduced API ------------------------------------------------------------------------
+
+    @classmethod
+    def rplus(cls, x: Any, tau: Any) -> Matrix:
+        """``X ⊕ τ = X·Exp(τ)``."""
+        return cls.compose(x, cls.exp(tau))
+
+    @classmethod
+    def rminus(cls, y: Any, x: Any) -> Matrix:
+        """``Y ⊖ X = Log(X⁻¹·Y)``."""
+        return cls.log(cls.compose(cls.inverse(x), y))
+
+    @classmethod
+    def lplus(cls, x: Any, tau: Any) -> Matrix:
+        """``τ ⊕ X = Exp(τ)·X``."""
+        return cls.compose(cls.exp(tau), x)
+
+    @classmethod
+    def lminus(cls, y: Any, x: Any) -> Matrix:
+        """``Y ⊖ₗ X = Log(Y·X⁻¹)``."""
+        return cls.log(cls.compose(y, cls.inverse(x)))
+
+    @classmethod
+    def between(cls, x: Any, y: Any) -> Matrix:
+        """``X⁻¹·Y``."""
+        return cls.compose(cls.inverse(x), y)
+
+    # ---- minimal API ------------------------------------------------------------------------
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """``Exp(τ) = exp(τ^)``."""
+        raise NotImplementedError
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        """``Log(X)``, a ``dim×1`` column."""
+        raise NotImplementedError
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        """``τ^``."""
+        raise NotImplementedError
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        """``M^∨``."""
+        raise NotImplementedError
+
+    @classmethod
+    def compose(cls, x: Any, y: Any) -> Matrix:
+        """``X·Y``."""
+        raise NotImplementedError
+
+    @classmethod
+    def inverse(cls, x: Any) -> Matrix:
+        """``X⁻¹``."""
+        raise NotImplementedError
+
+    @classmethod
+    def act(cls, x: Any, p: Any) -> Matrix:
+        """``X·p`` for a point column ``p``."""
+        raise NotImplementedError
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        """``Ad_X``, with ``Ad_X τ = (X τ^ X⁻¹)^∨``."""
+        raise NotImplementedError
+
+
+class _SymRotation(SymbolicGroup):
+    """SO(n): ``R`` itself."""
+
+    @classmethod
+    def compose(cls, x: Any, y: Any) -> Matrix:
+        return ca.mtimes(cls._element(x, "X"), cls._element(y, "Y"))
+
+    @classmethod
+    def inverse(cls, x: Any) -> Matrix:
+        return cls._element(x).T
+
+    @classmethod
+    def act(cls, x: Any, p: Any) -> Matrix:
+        return ca.mtimes(cls._element(x), _column(p, cls.size, "p"))
+
+
+class SymSO2(_SymRotation):
+    """SO(2): ``2×2`` rotations, tangent ``θ`` as ``1×1``."""
+
+    group = SO2
+    dim = 1
+    size = 2
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """``[[cos θ, −sin θ], [sin θ, cos θ]]``."""
+        theta = cls._tangent(tau)
+        c, s = ca.cos(theta), ca.sin(theta)
+        return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        """``θ = atan2(R₁₀, R₀₀) ∈ (−π, π]``."""
+        r = cls._element(x)
+        return ca.atan2(r[1, 0], r[0, 0])
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        theta = cls._tangent(tau)
+        return ca.vertcat(ca.horzcat(0, -theta), ca.horzcat(theta, 0))
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        a = _square(m, 2, "M")
+        return 0.5 * (a[1, 0] - a[0, 1])
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        cls._element(x)
+        return ca.DM.ones(1, 1)
+
+
+def _skew(w: Matrix) -> Matrix:
+    """``[w]×``."""
+    return ca.vertcat(
+        ca.horzcat(0, -w[2], w[1]),
+        ca.horzcat(w[2], 0, -w[0]),
+        ca.horzcat(-w[1], w[0], 0),
+    )
+
+
+def _unskew(m: Matrix) -> Matrix:
+    """``vee`` of the skew part ``(M − Mᵀ)/2``."""
+    return 0.5 * ca.vertcat(m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
+
+
+def _so3_exp(w: Matrix) -> Matrix:
+    """Rodrigues with the half-angle coefficients of ``lie._so3.exp``:
+    ``Exp(w) = (1 − b t) I + b w wᵀ + a [w]×``, ``r = sin(θ/2)/θ``, ``a = 2r cos(θ/2)``, ``b = 2r²``."""
+    t = ca.sumsqr(w)
+    small = t < 1e-8  # θ < 1e-4: the next series terms are ~1e-20
+    theta = ca.sqrt(ca.if_else(small, 1.0, t))
+    r = ca.if_else(small, 0.5 - t / 48.0, ca.sin(0.5 * theta) / theta)
+    cos_half = ca.if_else(small, 1.0 - t / 8.0 + t * t / 384.0, ca.cos(0.5 * theta))
+    a = 2.0 * r * cos_half
+    b = 2.0 * r * r
+    return (1.0 - b * t) * ca.DM.eye(3) + b * ca.mtimes(w, w.T) + a * _skew(w)
+
+
+def _so3_quaternion(r: Matrix) -> Matrix:
+    """Unit quaternion ``(x, y, z, w)``, ``w ≥ 0``, by Shepperd's method (``lie._so3.to_quaternion``):
+    the candidate column with the largest diagonal entry, chosen with ``if_else`` (ties: the first)."""
+    r00, r01, r02 = r[0, 0], r[0, 1], r[0, 2]
+    r10, r11, r12 = r[1, 0], r[1, 1], r[1, 2]
+    r20, r21, r22 = r[2, 0], r[2, 1], r[2, 2]
+    d = [r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22]
+    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
+    candidates = [
+        ca.vertcat(1.0 + d[0], s01, s02, d21),
+        ca.vertcat(s01, 1.0 + d[1], s12, d02),
+        ca.vertcat(s02, s12, 1.0 + d[2], d10),
+        ca.vertcat(d21, d02, d10, 1.0 + d[3]),
+    ]
+    q = candidates[3]
+    for k in (2, 1, 0):  # innermost test last: candidate k wins if it is ≥ every later one
+        wins = d[k] >= d[k + 1]
+        for j in range(k + 2, 4):
+            wins = ca.logic_and(wins, d[k] >= d[j])
+        q = ca.if_else(wins, candidates[k], q)
+    q = q / ca.norm_2(q)
+    return ca.if_else(q[3] < 0.0, -q, q)
+
+
+def _so3_log(r: Matrix) -> Matrix:
+    """``θu`` with ``θ = 2 atan2(|v|, w) ∈ [0, π]`` of the quaternion ``(v, w)`` of ``R``;
+    ``θ/|v| → 2/w (1 − |v|²/(3w²))`` below ``|v| = 1e-8``."""
+    q = _so3_quaternion(r)
+    v, w = q[:3], q[3]
+    s2 = ca.sumsqr(v)
+    small = s2 < 1e-16
+    ws = ca.if_else(small, w, 1.0)
+    s = ca.sqrt(ca.if_else(small, 1.0, s2))
+    ratio = ca.if_else(small, 2.0 / ws * (1.0 - s2 / (3.0 * ws * ws)), 2.0 * ca.atan2(s, w) / s)
+    return ratio * v
+
+
+class SymSO3(_SymRotation):
+    """SO(3): ``3×3`` rotations, tangent ``θu`` as ``3×1``.
+
+    ``log`` goes through the quaternion (Shepperd's method), accurate to machine
+    precision at every angle, including ``π``, where it returns the axis whose
+    quaternion has ``w = +0`` (either sign is valid, CONVENTIONS §3).
+    """
+
+    group = SO3
+    dim = 3
+    size = 3
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×``."""
+        return _so3_exp(cls._tangent(tau))
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        return _so3_log(cls._element(x))
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        """``[w]× = [[0, −w₃, w₂], [w₃, 0, −w₁], [−w₂, w₁, 0]]``."""
+        return _skew(cls._tangent(tau))
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        return _unskew(_square(m, 3, "M"))
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        """``Ad_R = R``."""
+        return cls._element(x)
+
+
+class _SymTransform(SymbolicGroup):
+    """SE(n): ``[[R, t], [0, 1]]`` handled by blocks, the last row always constant."""
+
+    rotation: ClassVar[type[SymbolicGroup]]
+    point_dim: ClassVar[int]
+
+    @classmethod
+    def _assemble(cls, r: Matrix, t: Matrix) -> Matrix:
+        d = cls.point_dim
+        last = ca.horzcat(ca.DM.zeros(1, d), ca.DM.ones(1, 1))
+        return ca.vertcat(ca.horzcat(r, t), last)
+
+    @classmethod
+    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
+        a = cls._element(x, name)
+        d = cls.point_dim
+        return a[:d, :d], a[:d, d]
+
+    @classmethod
+    def from_matrix(cls, m: Any) -> Matrix:
+        """``[[R, t], [0, 1]]`` from the blocks of ``m`` (its last row is replaced by constants)."""
+        return cls._assemble(*cls._split(m, "m"))
+
+    @classmethod
+    def from_rotation_translation(cls, r: Any, t: Any) -> Matrix:
+        """``[[R, t], [0, 1]]``."""
+        return cls._assemble(cls.rotation._element(r, "R"), _column(t, cls.point_dim, "t"))
+
+    @classmethod
+    def rotation_part(cls, x: Any) -> Matrix:
+        """``R``."""
+        return cls._split(x)[0]
+
+    @classmethod
+    def translation(cls, x: Any) -> Matrix:
+        """``t`` (a column)."""
+        return cls._split(x)[1]
+
+    @classmethod
+    def compose(cls, x: Any, y: Any) -> Matrix:
+        """``[[Ra Rb, Ra tb + ta], [0, 1]]``."""
+        ra, ta = cls._split(x, "X")
+        rb, tb = cls._split(y, "Y")
+        return cls._assemble(ca.mtimes(ra, rb), ca.mtimes(ra, tb) + ta)
+
+    @classmethod
+    def inverse(cls, x: Any) -> Matrix:
+        """``[[Rᵀ, −Rᵀt], [0, 1]]``."""
+        r, t = cls._split(x)
+        return cls._assemble(r.T, -ca.mtimes(r.T, t))
+
+    @classmethod
+    def act(cls, x: Any, p: Any) -> Matrix:
+        """``R p + t``."""
+        r, t = cls._split(x)
+        return ca.mtimes(r, _column(p, cls.point_dim, "p")) + t
+
+
+class SymSE2(_SymTransform):
+    """SE(2): ``3×3`` homogeneous matrices, tangent ``(ρx, ρy, θ)``."""
+
+    group = SE2
+    rotation = SymSO2
+    dim = 3
+    size = 3
+    point_dim = 2
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """``[[R(θ), V(θ) ρ], [0, 1]]``, ``V(θ) = [[a, −b], [b, a]]``, ``a = sin θ/θ``, ``b = (1 − cos θ)/θ``."""
+        tau = cls._tangent(tau)
+        rho, theta = tau[:2], tau[2]
+        t = theta * theta
+        a, b = sinc(t, theta), theta * cosc(t, theta)
+        trans = ca.vertcat(a * rho[0] - b * rho[1], a * rho[1] + b * rho[0])
+        return cls._assemble(SymSO2.exp(theta), trans)
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        """``(V(θ)⁻¹ t, θ)``, ``V⁻¹ = [[a, b], [−b, a]]``, ``a = (θ/2) cot(θ/2)``, ``b = θ/2``."""
+        r, t = cls._split(x)
+        theta = SymSO2.log(r)
+        a = 1.0 - theta * theta * jinv_coef(theta * theta, theta)
+        b = 0.5 * theta
+        return ca.vertcat(a * t[0] + b * t[1], a * t[1] - b * t[0], theta)
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        """``[[0, −θ, ρx], [θ, 0, ρy], [0, 0, 0]]``."""
+        tau = cls._tangent(tau)
+        return ca.vertcat(ca.horzcat(SymSO2.hat(tau[2]), tau[:2]), ca.DM.zeros(1, 3))
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        a = _square(m, 3, "M")
+        return ca.vertcat(a[0, 2], a[1, 2], 0.5 * (a[1, 0] - a[0, 1]))
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        """``[[R, (t_y, −t_x)ᵀ], [0, 1]]``."""
+        r, t = cls._split(x)
+        return cls._assemble(r, ca.vertcat(t[1], -t[0]))
+
+
+class SymSE3(_SymTransform):
+    """SE(3): ``4×4`` homogeneous matrices, tangent ``(ρ, θ)`` as ``6×1``."""
+
+    group = SE3
+    rotation = SymSO3
+    dim = 6
+    size = 4
+    point_dim = 3
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """``[[Exp(θ), Jl(θ) ρ], [0, 1]]``, ``Jl(θ)ρ = ρ + (1 − cos θ)/θ² θ×ρ + (θ − sin θ)/θ³ θ×(θ×ρ)``."""
+        tau = cls._tangent(tau)
+        rho, theta = tau[:3], tau[3:]
+        t = ca.sumsqr(theta)
+        wv = ca.cross(theta, rho)
+        trans = rho + cosc(t) * wv + sinc3(t) * ca.cross(theta, wv)
+        return cls._assemble(_so3_exp(theta), trans)
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        """``(Jl(θ)⁻¹ t, θ)``, ``Jl(θ)⁻¹ t = t − ½ θ×t + (1/θ² − cot(θ/2)/(2θ)) θ×(θ×t)``, ``θ = Log(R)``."""
+        r, t = cls._split(x)
+        theta = _so3_log(r)
+        wt = ca.cross(theta, t)
+        rho = t - 0.5 * wt + jinv_coef(ca.sumsqr(theta)) * ca.cross(theta, wt)
+        return ca.vertcat(rho, theta)
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        """``[[θ^, ρ], [0, 0]]``."""
+        tau = cls._tangent(tau)
+        return ca.vertcat(ca.horzcat(_skew(tau[3:]), tau[:3]), ca.DM.zeros(1, 4))
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        a = _square(m, 4, "M")
+        return ca.vertcat(a[:3, 3], _unskew(a[:3, :3]))
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        """``[[R, [t]× R], [0, R]]``."""
+        r, t = cls._split(x)
+        top = ca.horzcat(r, ca.mtimes(_skew(t), r))
+        return ca.vertcat(top, ca.horzcat(ca.DM.zeros(3, 3), r))
+
+
+_TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {SO2: SymSO2, SO3: SymSO3, SE2: SymSE2, SE3: SymSE3}
+
+
+def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
+    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``.
+
+    Raises
+    ------
+    TypeError
+        For anything but ``SO2``, ``SO3``, ``SE2``, ``SE3``.
+    """
+    try:
+        return _TWINS[group]
+    except (KeyError, TypeError):
+        name = getattr(group, "__name__", repr(group))
+        raise TypeError(f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3") from None

@@ -1,0 +1,217 @@
+"""The symbolic groups against the numpy kernels: values, edge cases, derivatives."""
+
+from __future__ import annotations
+
+from functools import cache
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn, ShapeError
+from manopt_lie.casadi import SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
+
+TWINS = [SymSO2, SymSO3, SymSE2, SymSE3]
+twins = pytest.mark.parametrize("sym", TWINS, ids=lambda s: s.__name__)
+ROTATION = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6)}
+REGIMES = ["identity", "tiny", "random", "uniform", "near_pi", "at_pi"]
+TOL = 1e-12
+
+
+def tangent(group: type[LieGroup], regime: str, rng: np.random.Generator) -> np.ndarray:
+    """A tangent of a sampling regime: zero, ``1e-8·randn``, ``randn``, or a rotation angle
+    within ``1e-9`` of π (``near_pi``) or exactly π (``at_pi``, on a coordinate axis)."""
+    tau = rng.standard_normal(group.dim)
+    if regime == "identity":
+        return np.zeros(group.dim)
+    if regime == "tiny":
+        return 1e-8 * tau
+    if regime in ("random", "uniform"):
+        return tau
+    part = ROTATION[group]
+    if regime == "at_pi":
+        axis = np.zeros(part.stop - part.start)
+        axis[rng.integers(axis.size)] = 1.0
+        tau[part] = np.pi * axis
+        return tau
+    rot = tau[part]
+    tau[part] = rot / np.linalg.norm(rot) * (np.pi - rng.uniform(1e-12, 1e-9))
+    return tau
+
+
+def element(group: type[LieGroup], regime: str, rng: np.random.Generator) -> LieGroup:
+    if regime == "uniform":
+        return group.random(rng)
+    if regime == "at_pi" and group in (SO3, SE3):
+        # A rotation by exactly π: diag with two −1 (no rounding in Exp).
+        m = group.identity().as_matrix().copy()
+        keep = rng.integers(3)
+        flip = [i for i in range(3) if i != keep]
+        m[flip, flip] = -1.0
+        if group is SE3:
+            m[:3, 3] = rng.standard_normal(3)
+        return group.from_matrix(m)
+    return group.exp(tangent(group, regime, rng))
+
+
+@cache
+def functions(sym: type[SymbolicGroup]) -> dict[str, ca.Function]:
+    """Every operation of ``sym`` as a ``casadi.Function`` of SX symbols."""
+    k, d = sym.size, sym.dim
+    mx, my = ca.SX.sym("x", k, k), ca.SX.sym("y", k, k)
+    x, y = sym.from_matrix(mx), sym.from_matrix(my)  # SE(n): the last rows are unused inputs
+    tau = ca.SX.sym("tau", d)
+    p = ca.SX.sym("p", k - 1 if sym in (SymSE2, SymSE3) else k)
+    a = ca.SX.sym("a", k, k)
+    fs = {
+        "exp": ([tau], sym.exp(tau)),
+        "log": ([mx], sym.log(x)),
+        "compose": ([mx, my], sym.compose(x, y)),
+        "inverse": ([mx], sym.inverse(x)),
+        "act": ([mx, p], sym.act(x, p)),
+        "adjoint": ([mx], sym.adjoint(x)),
+        "rplus": ([mx, tau], sym.rplus(x, tau)),
+        "rminus": ([my, mx], sym.rminus(y, x)),
+        "lplus": ([mx, tau], sym.lplus(x, tau)),
+        "lminus": ([my, mx], sym.lminus(y, x)),
+        "between": ([mx, my], sym.between(x, y)),
+        "hat": ([tau], sym.hat(tau)),
+        "vee": ([a], sym.vee(a)),
+    }
+    return {name: ca.Function(name, ins, [ca.densify(ca.SX(out))]) for name, (ins, out) in fs.items()}
+
+
+def call(f: ca.Function, *args: np.ndarray) -> np.ndarray:
+    out = np.array(f(*args))
+    return out.ravel() if out.shape[1] == 1 else out
+
+
+def assert_close(actual: np.ndarray, expected: np.ndarray) -> None:
+    np.testing.assert_allclose(actual, expected, rtol=0, atol=TOL * max(1.0, np.abs(expected).max()))
+
+
+@twins
+@pytest.mark.parametrize("regime", REGIMES)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_operations_agree_with_numpy(sym, regime, seed):
+    rng = np.random.default_rng(seed)
+    g = sym.group
+    f = functions(sym)
+    x, y = element(g, regime, rng), element(g, regime, rng)
+    mx, my = x.as_matrix(), y.as_matrix()
+    tau = tangent(g, regime, rng)
+    p = rng.standard_normal(g.point_dim)
+    assert_close(call(f["exp"], tau), g.exp(tau).as_matrix())
+    log = call(f["log"], mx)
+    if regime == "at_pi" and g in (SO3, SE3):
+        # Either axis sign is valid at exactly π: compare through Exp, and the angle.
+        assert_close(g.exp(log).as_matrix(), mx)
+        assert_close(np.abs(log[ROTATION[g]]), np.abs(x.log()[ROTATION[g]]))
+    else:
+        assert_close(log, x.log())
+    assert_close(call(f["compose"], mx, my), x.compose(y).as_matrix())
+    assert_close(call(f["inverse"], mx), x.inverse().as_matrix())
+    assert_close(call(f["act"], mx, p), x.act(p))
+    assert_close(np.atleast_2d(call(f["adjoint"], mx)), np.atleast_2d(x.adjoint()))
+    assert_close(call(f["rplus"], mx, tau), x.rplus(tau).as_matrix())
+    assert_close(call(f["lplus"], mx, tau), x.lplus(tau).as_matrix())
+    assert_close(call(f["between"], mx, my), x.between(y).as_matrix())
+    if regime not in ("near_pi", "at_pi"):  # differences of two elements near π are generic
+        assert_close(call(f["rminus"], my, mx), y.rminus(x))
+        assert_close(call(f["lminus"], my, mx), y.lminus(x))
+    hat = g.hat(tau)
+    assert_close(call(f["hat"], tau), hat)
+    assert_close(call(f["vee"], hat), tau)
+
+
+@twins
+def test_log_near_pi_to_machine_precision(sym):
+    """Angles π − ε for ε down to 0: the symbolic log agrees with numpy to 1e-12."""
+    g = sym.group
+    f = functions(sym)
+    rng = np.random.default_rng(0)
+    for gap in (1e-6, 1e-9, 1e-12, 0.0):
+        for _ in range(10):
+            tau = rng.standard_normal(g.dim)
+            rot = tau[ROTATION[g]]
+            tau[ROTATION[g]] = rot / np.linalg.norm(rot) * (np.pi - gap)
+            x = g.exp(tau)
+            log = call(f["log"], x.as_matrix())
+            if gap == 0.0 and g in (SO3, SE3):
+                assert_close(g.exp(log).as_matrix(), x.as_matrix())
+            else:
+                assert_close(log, x.log())
+
+
+@twins
+def test_exact_edge_values(sym):
+    f = functions(sym)
+    eye = sym.identity()
+    np.testing.assert_array_equal(call(f["exp"], np.zeros(sym.dim)), np.array(eye))
+    np.testing.assert_array_equal(call(f["log"], np.array(eye)), np.zeros(sym.dim))
+
+
+@twins
+def test_derivatives_finite_at_identity(sym):
+    """Every small-angle branch has finite derivatives of first and second order at 0."""
+    d = sym.dim
+    delta = ca.SX.sym("d", d)
+    mx = ca.SX.sym("x", sym.size, sym.size)
+    x = sym.from_matrix(mx)
+    around = sym.log(sym.exp(delta))
+    h, _ = ca.hessian(ca.sumsqr(sym.log(sym.rplus(x, delta))) + ca.sumsqr(around), delta)
+    fn = ca.Function("f", [delta, mx], [ca.jacobian(around, delta), ca.jacobian(sym.log(x), mx), h])
+    j_log_exp, j_log, hess = (np.array(o) for o in fn(np.zeros(d), np.array(sym.identity())))
+    np.testing.assert_allclose(j_log_exp, np.eye(d), atol=1e-15)
+    assert np.isfinite(j_log).all() and np.isfinite(hess).all()
+    np.testing.assert_allclose(hess, 4.0 * np.eye(d), atol=1e-12)  # ‖δ‖² + ‖δ‖² about the identity
+
+
+@twins
+def test_right_jacobians_match_numpy(sym):
+    """CasADi's derivatives through the chart X ⊕ δ are the closed-form right Jacobians (CONVENTIONS §4)."""
+    g = sym.group
+    rng = np.random.default_rng(1)
+    k, d = sym.size, sym.dim
+    mx = ca.SX.sym("x", k, k)
+    x = sym.from_matrix(mx)
+    tau = ca.SX.sym("tau", d)
+    dx, dt = ca.SX.sym("dx", d), ca.SX.sym("dt", d)
+    y0 = sym.rplus(x, tau)
+    y = sym.rplus(sym.rplus(x, dx), tau + dt)
+    err = sym.rminus(y, y0)  # the right-Jacobian definition: (f(X ⊕ δ) ⊖ f(X)) / δ
+    fn = ca.Function("j", [mx, tau, dx, dt], [ca.jacobian(err, dx), ca.jacobian(err, dt)])
+    xs, ts = g.random(rng), 0.7 * rng.standard_normal(d)
+    j_x, j_t = (np.array(o) for o in fn(xs.as_matrix(), ts, np.zeros(d), np.zeros(d)))
+    _, ref_x, ref_t = xs.rplus(ts, jac=True)
+    np.testing.assert_allclose(j_x, ref_x, atol=1e-12)
+    np.testing.assert_allclose(j_t, ref_t, atol=1e-12)
+
+
+def test_mx_and_numbers():
+    """The same code runs on MX (and on plain numbers, as DM)."""
+    tau, mx = ca.MX.sym("tau", 6), ca.MX.sym("X", 4, 4)
+    x = SymSE3.from_matrix(mx)
+    f = ca.Function("f", [tau, mx], [SymSE3.rminus(SymSE3.rplus(x, tau), x)])
+    t = np.array([0.1, -0.2, 0.3, 0.4, -0.5, 0.6])
+    m = SE3.random(0).as_matrix()
+    np.testing.assert_allclose(np.array(f(t, m)).ravel(), t, atol=1e-14)
+    assert isinstance(SymSO3.exp([0.1, 0.2, 0.3]), ca.DM)
+    np.testing.assert_allclose(np.array(SymSO3.exp([0.1, 0.2, 0.3])), SO3.exp([0.1, 0.2, 0.3]).as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(np.array(SymSO2.log(SO2.from_angle(0.5).as_matrix())), [[0.5]], atol=1e-15)
+
+
+def test_twin_lookup_and_bad_input():
+    assert [symbolic(g) for g in (SO2, SO3, SE2, SE3)] == TWINS
+    with pytest.raises(TypeError, match="no symbolic twin of R3"):
+        symbolic(Rn(3))
+    with pytest.raises(ShapeError, match="vector of 3 entries"):
+        SymSO3.exp(ca.SX.sym("t", 2))
+    with pytest.raises(ShapeError, match="4×4"):
+        SymSE3.log(ca.SX.sym("x", 3, 3))
+    with pytest.raises(ShapeError, match="p: expected a vector of 2"):
+        SymSE2.act(SymSE2.identity(), [1.0, 2.0, 3.0])
+    with pytest.raises(TypeError, match="CasADi"):
+        SymSO3.log("R")
