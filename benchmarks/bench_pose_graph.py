@@ -11,7 +11,9 @@ For each dataset (``$MANOPT_LIE_DATA`` or ``../shared/datasets``):
   when ``gtsam`` is installed (optional), all stopped by GTSAM's default rule
   (relative decrease of the cost below 1e-5) and all final costs evaluated with
   our definition; the ratio is our solve time over GTSAM's (both start from
-  the same chordal initialization, whose time is listed apart).
+  the same chordal initialization, whose time is listed apart);
+- the CasADi/IPOPT reference (``problems.reference``) on both costs, run once:
+  its final costs check ours independently.
 
 Times are medians of ``--repeat`` runs. ``python benchmarks/bench_pose_graph.py [--json out.json]``.
 """
@@ -32,6 +34,7 @@ from manopt_lie import SE3
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
 from problems import g2o
 from problems.pose_graph import PoseGraph
+from problems.reference import reference_solve
 
 # name: (published chordal f*, SE-Sync C++ time in s), from datasets/README.md.
 DATASETS: dict[str, tuple[float | None, float | None]] = {
@@ -112,6 +115,17 @@ def bench(name: str, repeat: int) -> list[dict[str, Any]]:
                 "solver": f"{type(optimizer).__name__} (geodesic)", "iterations": res.nit, "init": init_time,
                 "time": seconds, "cost": res.fun, "f*": None, "gap": None, "reference": "GTSAM LM",
                 "ratio": None if peer is None else seconds / peer[0],
+            }
+        )  # fmt: skip
+    for cost in ("chordal", "geodesic"):  # the independent IPOPT reference (CasADi), once: it is slow
+        ref = reference_solve(graph, x0, cost=cost)
+        rows.append(
+            base
+            | {
+                "solver": f"IPOPT reference ({cost})", "iterations": ref.iterations, "init": init_time,
+                "time": ref.time, "cost": ref.fun, "f*": published if cost == "chordal" else None,
+                "gap": None if published is None or cost != "chordal" else (ref.fun - published) / published,
+                "reference": None, "ratio": None,
             }
         )  # fmt: skip
     if peer is not None:
