@@ -127,7 +127,7 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     ``ρ = (f(x) − f(R_x(δ))) / (½ δᵀ(λDδ − g))`` is positive.
 
     Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
-    ``ν ← 2``; on failure ``λ ← λν``, ``ν ← 2ν``. Since ``D`` carries the scale
+    ``ν ← 2`` (``λ`` at least 1e-15); on failure ``λ ← λν``, ``ν ← 2ν``. Since ``D`` carries the scale
     of ``H``, ``λ`` is dimensionless and starts at ``initial_damping``, by default
     1e-6. Pose graphs' normal equations are ill-conditioned (condition 10⁸–10¹¹):
     there Ceres's ``10⁻⁴`` freezes the weak directions for several iterations and
@@ -158,7 +158,8 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         rho = (lin.cost - f_new) / predicted if predicted > 0 else -math.inf
         extra = {"damping": state.lam, "rho": rho}
         if rho > 0:
-            state.lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            # Floored: after hundreds of successes λ would underflow to 0, and 0·ν = nan on a failure.
+            state.lam = max(state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
             state.nu = 2.0
             return _Step(x_new, f_new, float(np.linalg.norm(flat)), True, extra)
         state.lam *= state.nu

@@ -138,3 +138,13 @@ def test_pose_graph_validates_its_arrays(rng):
     graph = PoseGraph(SE3, edges, z, info, ids=np.array([7, 3, 9]), fixed=np.array([1]))
     assert (graph.n, graph.m, graph.d, graph.anchor) == (3, 2, 3, 1)
     assert graph.edge_names([1]) == ["3→9"]
+
+
+def test_levenberg_marquardt_survives_long_robust_runs():
+    """Hundreds of successful steps used to drive λ to 0, and the next failure to 0·∞ = nan."""
+    graph = synthetic.cube(4, loop_closure_probability=0.5, outlier_rate=0.2, seed=1).graph
+    result = LevenbergMarquardt(grad_rtol=1e-10, max_iterations=3000).solve(
+        graph.problem("geodesic", robust="huber:3.0"), graph.chordal_initialization()
+    )
+    assert result.nit > 600 and result.status in (Status.GRADIENT_NORM, Status.STEP_SIZE)
+    assert np.all(result.history.extra["damping"][1:] >= 1e-15)
