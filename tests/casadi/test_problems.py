@@ -301,3 +301,20 @@ def test_constant_and_status(rng):
     assert problem.cost(x) == 2.0
     np.testing.assert_array_equal(problem.grad(x), np.zeros(3))
     assert TrustRegion().solve(problem, x).status is Status.GRADIENT_NORM
+
+
+def test_class_constructors_are_the_functions(spd, rng):
+    """``Problem.from_casadi`` / ``LeastSquaresProblem.from_casadi`` are the public spellings."""
+    from manopt_lie.optim import Problem
+
+    a, x = spd
+    problem = Problem.from_casadi(LieGroupManifold(SO3), quadratic_form(a, x))
+    assert TrustRegion(grad_rtol=1e-10).solve(problem, SO3.identity()).fun == pytest.approx(
+        np.linalg.eigvalsh(a)[0] * x @ x, rel=1e-10
+    )
+    truth, landmarks, z, residual = range_bearing(rng)
+    lsq = LeastSquaresProblem.from_casadi(
+        Power(LieGroupManifold(SE2), 1), np.zeros((len(z), 1), dtype=int), residual, data=(landmarks, z)
+    )
+    assert isinstance(lsq, LeastSquaresProblem)
+    assert truth.dist(LevenbergMarquardt(grad_rtol=1e-12).solve(lsq, SE2.identity((1,))).x[0]) < 1e-9
