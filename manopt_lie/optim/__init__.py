@@ -3,6 +3,7 @@
 from .conjugate_gradient import ConjugateGradient
 from .gradient_descent import GradientDescent
 from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
+from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt, NonlinearLeastSquares
 from .optimizer import Optimizer, StoppingCriteria
 from .problem import Problem
@@ -19,6 +20,10 @@ __all__ = [
     "GradientDescent",
     "ConjugateGradient",
     "TrustRegion",
+    "LineSearch",
+    "Backtracking",
+    "StrongWolfe",
+    "LineSearchResult",
     "GaussNewton",
     "LevenbergMarquardt",
     "NonlinearLeastSquares",

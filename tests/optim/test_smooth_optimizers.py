@@ -8,21 +8,25 @@ import pytest
 from manopt_lie import SO3, NonFiniteError, NotOnManifoldError, ShapeError
 from manopt_lie.manifolds import LieGroupManifold, Power, Sphere, Stiefel
 from manopt_lie.optim import (
+    Backtracking,
     ConjugateGradient,
     GradientDescent,
     OptimizeResult,
     Problem,
     Status,
     StoppingCriteria,
+    StrongWolfe,
     TrustRegion,
 )
 
 OPTIMIZERS = {
     "gd": lambda **kw: GradientDescent(**kw),
+    "gd-wolfe": lambda **kw: GradientDescent(line_search="wolfe", **kw),
     "cg-fr": lambda **kw: ConjugateGradient(beta="fletcher-reeves", **kw),
-    "cg-pr": lambda **kw: ConjugateGradient(**kw),
+    "cg-pr": lambda **kw: ConjugateGradient(beta="polak-ribiere", **kw),
     "cg-hs": lambda **kw: ConjugateGradient(beta="hestenes-stiefel", **kw),
     "cg-hz": lambda **kw: ConjugateGradient(beta="hager-zhang", **kw),
+    "cg-armijo": lambda **kw: ConjugateGradient(line_search="armijo", **kw),
     "tr": lambda **kw: TrustRegion(**kw),
 }
 optimizers = pytest.mark.parametrize("make", OPTIMIZERS.values(), ids=OPTIMIZERS.keys())
@@ -124,10 +128,11 @@ def test_trust_region_on_a_power_of_so3():
     assert target.dist(res.x).max() < 1e-6
 
 
-@pytest.mark.parametrize("make", [OPTIMIZERS["gd"], OPTIMIZERS["cg-pr"]], ids=["gd", "cg"])
-def test_armijo_descent_is_monotone(make):
-    problem, _ = brockett()
-    res = make(max_iterations=200).solve(problem, problem.manifold.random_point(4))
+@pytest.mark.parametrize("key", ["gd", "gd-wolfe", "cg-pr", "cg-hz", "cg-armijo"])
+@pytest.mark.parametrize("case", ["rayleigh", "brockett", "karcher"])
+def test_line_search_descent_is_monotone(key, case):
+    problem, x0 = _problem(case)
+    res = OPTIMIZERS[key](max_iterations=200).solve(problem, x0)
     assert np.all(np.diff(res.history.cost) <= 0)
 
 
@@ -191,6 +196,8 @@ def test_settings_are_validated():
         TrustRegion(rho_prime=0.5)
     with pytest.raises(ValueError):
         GradientDescent(contraction=1.5)
+    with pytest.raises(ValueError, match="line_search"):
+        GradientDescent(line_search="newton")
 
 
 def test_hessian_products_reuse_the_euclidean_gradient():
@@ -203,3 +210,148 @@ def test_hessian_products_reuse_the_euclidean_gradient():
     res = TrustRegion().solve(counted, counted.manifold.random_point(1))
     assert res.success and res.nhev > 3 * res.ngev
     assert len(calls) == res.ngev  # one egrad per point, however many Hessian products
+
+
+# ---- the strong Wolfe line search --------------------------------------------------
+
+
+def _problem(case):
+    """A problem of the three families and a start point far from its optimum."""
+    if case == "rayleigh":
+        problem, _, _ = rayleigh()
+        return problem, problem.manifold.random_point(1)
+    if case == "brockett":
+        problem, _ = brockett()
+        return problem, problem.manifold.random_point(3)
+    problem, _ = karcher()
+    return problem, SO3.identity()
+
+
+def _array(x):
+    return x.as_matrix() if hasattr(x, "as_matrix") else np.asarray(x)
+
+
+def _derivative(problem, x, d, y, g):
+    """``φ'(α) = ⟨grad f(y), T_{x→y}(d)⟩``, computed independently of the search."""
+    m = problem.manifold
+    return float(np.sum(m.inner(y, g, m.transp(x, y, d))))
+
+
+@pytest.mark.parametrize("case", ["rayleigh", "brockett", "karcher"])
+@pytest.mark.parametrize("curvature", [0.9, 0.1])
+@pytest.mark.parametrize("scale", [1e-4, 1.0, 1e3], ids=["short", "unit", "long"])
+@pytest.mark.parametrize("direction", ["gradient", "rotated"])
+def test_strong_wolfe_step_satisfies_both_conditions(case, curvature, scale, direction):
+    """From first trials far too short (bracketing), about right and far too long (zoom),
+    along −grad and along another descent direction."""
+    problem, x = _problem(case)
+    m = problem.manifold
+    g = problem.grad(x)
+    d = -g if direction == "gradient" else -g + 0.9 * m.unit(x, m.random_tangent(x, 7)) * float(m.norm(x, g))
+    d_norm, slope = float(np.sqrt(np.sum(m.inner(x, d, d)))), float(np.sum(m.inner(x, g, d)))
+    assert slope < 0
+    c1 = 1e-4
+    ls = StrongWolfe(c1, curvature, initial="previous")  # first trial exactly `alpha_prev`
+    f0 = problem.cost(x)
+    res = ls.search(problem.cost, problem.grad, m, x, f0, d, d_norm, slope, alpha_prev=scale / d_norm)
+    assert res.success and res.wolfe and res.alpha > 0
+    assert res.step == pytest.approx(res.alpha * d_norm)
+    y = m.retr(x, d * res.alpha)
+    np.testing.assert_allclose(_array(res.x), _array(y), rtol=0, atol=1e-14)
+    assert problem.cost(y) == res.fun
+    assert res.fun <= f0 + c1 * res.alpha * slope  # sufficient decrease
+    g_y = problem.grad(res.x)
+    np.testing.assert_allclose(np.asarray(res.grad), np.asarray(g_y), rtol=1e-12, atol=1e-12)  # the point's gradient
+    assert abs(_derivative(problem, x, d, res.x, g_y)) <= curvature * abs(slope)  # strong curvature condition
+    assert res.ngev <= res.nfev <= 25
+
+
+@pytest.mark.parametrize("key", ["gd-wolfe", "cg-fr", "cg-pr", "cg-hs", "cg-hz"])
+@pytest.mark.parametrize("case", ["rayleigh", "brockett", "karcher"])
+def test_wolfe_optimizers_converge_to_the_known_optimum(key, case):
+    res = OPTIMIZERS[key](max_iterations=5000).solve(*_problem(case))
+    assert res.status is Status.GRADIENT_NORM and res.grad_norm <= 1e-6 * res.history.grad_norm[0]
+    if case == "rayleigh":
+        assert res.fun == pytest.approx(rayleigh()[1], abs=1e-9)
+    elif case == "brockett":
+        assert res.fun == pytest.approx(brockett()[1], rel=1e-9)
+    else:
+        assert res.x.dist(karcher()[1]) < 1e-6
+
+
+@pytest.mark.parametrize("key", ["gd-wolfe", "cg-pr", "cg-hz"])
+def test_wolfe_optimizers_evaluate_each_gradient_once(key):
+    """The gradient the search evaluated at the accepted point is reused, not recomputed."""
+    a = _symmetric(np.random.default_rng(0), 30)
+    seen = []
+
+    def egrad(x):
+        seen.append(x.tobytes())
+        return 2 * a @ x
+
+    problem = Problem(Sphere(30), cost=lambda x: x @ a @ x, egrad=egrad)
+    res = OPTIMIZERS[key]().solve(problem, problem.manifold.random_point(1))
+    assert res.success and res.ngev == len(seen) and len(set(seen)) == len(seen)
+    assert res.ngev < res.nfev + 1  # no more gradients than points whose cost was needed
+
+
+def test_strong_wolfe_reports_failure_without_decrease():
+    """With the gradient's sign flipped, −grad climbs: no trial decreases the cost."""
+    problem, _, _ = rayleigh()
+    m = problem.manifold
+    flipped = Problem(m, cost=problem.cost, rgrad=lambda x: -problem.grad(x))
+    x0 = m.random_point(1)
+    for opt in (GradientDescent(line_search="wolfe"), ConjugateGradient()):
+        res = opt.solve(flipped, x0)
+        assert res.status is Status.LINE_SEARCH_FAILED and not res.success
+        assert res.nit == 0 and res.fun == problem.cost(x0) and res.x is x0
+
+
+def test_strong_wolfe_falls_back_to_a_decreasing_point():
+    """Out of evaluations before the curvature condition holds: the best point with
+    sufficient decrease, flagged as not Wolfe."""
+    problem, x = _problem("rayleigh")
+    m = problem.manifold
+    g = problem.grad(x)
+    g_norm = float(m.norm(x, g))
+    f0 = problem.cost(x)
+    ls = StrongWolfe(curvature=0.1, max_evaluations=2, initial="previous")
+    res = ls.search(problem.cost, problem.grad, m, x, f0, -g, g_norm, -(g_norm**2), alpha_prev=1e-6 / g_norm)
+    assert res.success and not res.wolfe and res.nfev == 2
+    assert res.fun <= f0 - 1e-4 * res.alpha * g_norm**2
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"sufficient_decrease": 0.5, "curvature": 0.5},  # c1 = c2
+        {"sufficient_decrease": 0.6, "curvature": 0.1},  # c1 > c2
+        {"sufficient_decrease": 0.0},
+        {"sufficient_decrease": -1e-4},
+        {"curvature": 0.0},
+        {"curvature": -0.9},
+        {"curvature": 1.0},
+        {"max_evaluations": 0},
+        {"initial": "bisection"},
+        {"refine_tol": -1.0},
+    ],
+)
+def test_strong_wolfe_rejects_bad_settings(settings):
+    with pytest.raises(ValueError):
+        StrongWolfe(**settings)
+    optimizer_settings = {k: v for k, v in settings.items() if k in ("sufficient_decrease", "curvature")}
+    if optimizer_settings:
+        with pytest.raises(ValueError):
+            GradientDescent(line_search="wolfe", **optimizer_settings)
+        with pytest.raises(ValueError):
+            ConjugateGradient(line_search="wolfe", **optimizer_settings)
+
+
+def test_line_search_instances_are_used_as_given():
+    wolfe = StrongWolfe(curvature=0.5)
+    assert GradientDescent(line_search=wolfe).line_search is wolfe
+    assert ConjugateGradient(line_search=Backtracking()).line_search == Backtracking()
+    assert isinstance(ConjugateGradient().line_search, StrongWolfe)
+    assert isinstance(GradientDescent().line_search, Backtracking)
+    with pytest.raises(ValueError):
+        Backtracking(optimism=0.0)
