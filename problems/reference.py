@@ -480,7 +480,7 @@ def build_nlp(
     parametrization = _resolve(parametrization, spec, loss)  # type: ignore[assignment]
     rot = _rotations(parametrization, spec.d)
     poses = isinstance(spec, PoseGraph)
-    anchor = spec.anchor if poses else 0
+    anchor = spec.anchor if isinstance(spec, PoseGraph) else 0
     d, n, m = spec.d, spec.n, spec.m
     k, c = rot.size + (d if poses else 0), rot.n_constraints
     nv, ng = k * (n - 1), c * (n - 1)
@@ -502,7 +502,7 @@ def build_nlp(
     hess_e = ca.triu(ca.hessian(fe, w)[0])
     he_rows, he_cols = _triplets(hess_e)
     grad_edge = ca.Function("grad_edge", [xi, xj, p], [ca.gradient(fe, w)]).map(m)
-    hess_edge = ca.Function("hess_edge", [xi, xj, p], [ca.vertcat(*hess_e.nonzeros())]).map(m)
+    hess_edge = ca.Function("hess_edge", [xi, xj, p], [hess_e.nz[:]]).map(m)
     f_edge = f_edge.map(m)
 
     # One pose: g, its Jacobian, and the nonzeros of ∇²(λᵀg), mapped over the free poses.
@@ -512,8 +512,8 @@ def build_nlp(
     jp_rows, jp_cols = _triplets(jac_p)
     hp_rows, hp_cols = _triplets(hess_p)
     g_pose = ca.Function("g_pose", [r], [gp]).map(n - 1)
-    jac_pose = ca.Function("jac_pose", [r], [ca.vertcat(*jac_p.nonzeros())]).map(n - 1)
-    hess_pose = ca.Function("hess_pose", [r, lam], [ca.vertcat(*hess_p.nonzeros())]).map(n - 1)
+    jac_pose = ca.Function("jac_pose", [r], [jac_p.nz[:]]).map(n - 1)
+    hess_pose = ca.Function("hess_pose", [r, lam], [hess_p.nz[:]]).map(n - 1)
 
     v = ca.MX.sym("v", nv)
     vm = ca.reshape(v, k, n - 1)

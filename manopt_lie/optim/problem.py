@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..manifolds.base import Manifold, Point, Tangent
+
+if TYPE_CHECKING:
+    from ..manifolds import LieGroupManifold, Power
 
 __all__ = ["Problem"]
 
@@ -89,7 +92,7 @@ class Problem:
         return self._egrad_cache[1]
 
     @classmethod
-    def from_casadi(cls, manifold: Manifold, cost: Any, **options: Any) -> Problem:
+    def from_casadi(cls, manifold: LieGroupManifold | Power, cost: Any, **options: Any) -> Problem:
         """A problem from a symbolic CasADi cost: see :func:`manopt_lie.casadi.problem_from_casadi`."""
         from ..casadi.problems import problem_from_casadi  # lazy: avoids a circular import
 

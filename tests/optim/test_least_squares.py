@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from manopt_lie.linalg import SingularSystemError
 
 from manopt_lie import SE2, SE3, SO3
 from manopt_lie.check import check_gradient
+from manopt_lie.linalg import SingularSystemError
 from manopt_lie.manifolds import Euclidean, LieGroupManifold, Power, Sphere
 from manopt_lie.optim import (
     Factor,
@@ -19,7 +19,7 @@ from manopt_lie.optim import (
     Status,
     TrustRegion,
 )
-from manopt_lie.optim.losses import Cauchy, GemanMcClure, Huber, L1, TruncatedL2, parse_loss
+from manopt_lie.optim.losses import L1, Cauchy, GemanMcClure, Huber, TruncatedL2, parse_loss
 
 SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
 solvers = pytest.mark.parametrize("make", SOLVERS.values(), ids=SOLVERS.keys())
