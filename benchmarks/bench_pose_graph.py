@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from manopt_lie import SE3
+from benchmarks import peers
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
 from problems import g2o
 from problems.pose_graph import PoseGraph
@@ -61,32 +61,13 @@ def median_run(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
     return float(np.median(times)), out
 
 
-def gtsam_lm(path: Path, graph: PoseGraph, x0: Any, repeat: int) -> tuple[float, int, Any] | None:
-    """GTSAM's LM from ``x0`` with the anchor constrained; ``None`` without gtsam."""
-    try:
-        import gtsam
-    except ImportError:
+def gtsam_lm(graph: PoseGraph, x0: Any, repeat: int) -> tuple[float, int, Any] | None:
+    """GTSAM's LM from ``x0`` with the anchor constrained (:mod:`benchmarks.peers`, GTSAM's
+    default rule): median solve time of ``repeat`` runs, iterations, poses; ``None`` without gtsam."""
+    if not peers.available("gtsam-lm"):
         return None
-    three = graph.group is SE3
-    factors, _ = gtsam.readG2o(str(path), three)
-    values = gtsam.Values()
-    m = x0.as_matrix()
-    for k, key in enumerate(graph.ids):
-        pose = gtsam.Pose3(m[k]) if three else gtsam.Pose2(m[k, 0, 2], m[k, 1, 2], np.arctan2(m[k, 1, 0], m[k, 0, 0]))
-        values.insert(int(key), pose)
-    anchor = int(graph.ids[graph.anchor])
-    prior = gtsam.PriorFactorPose3 if three else gtsam.PriorFactorPose2
-    fixed = values.atPose3(anchor) if three else values.atPose2(anchor)
-    factors.add(prior(anchor, fixed, gtsam.noiseModel.Constrained.All(graph.group.dim)))
-
-    def run() -> Any:
-        optimizer = gtsam.LevenbergMarquardtOptimizer(factors, values, gtsam.LevenbergMarquardtParams())
-        return optimizer, optimizer.optimize()
-
-    seconds, (optimizer, result) = median_run(run, repeat)
-    get = result.atPose3 if three else result.atPose2
-    poses = np.stack([get(int(key)).matrix() for key in graph.ids])
-    return seconds, optimizer.iterations(), graph.group.from_matrix(poses, project=True)
+    runs = [peers.solve("gtsam-lm", graph, x0, rel_cost_decrease=GTSAM_RULE) for _ in range(repeat)]
+    return float(np.median([run.time for run in runs])), runs[-1].nit, runs[-1].x
 
 
 def bench(name: str, repeat: int) -> list[dict[str, Any]]:
@@ -106,7 +87,7 @@ def bench(name: str, repeat: int) -> list[dict[str, Any]]:
             "reference": "SE-Sync C++", "ratio": None if se_sync_time is None else (seconds + init_time) / se_sync_time,
         }
     )  # fmt: skip
-    peer = gtsam_lm(path, graph, x0, repeat)
+    peer = gtsam_lm(graph, x0, repeat)
     for optimizer in (LevenbergMarquardt(rel_cost_decrease=GTSAM_RULE), GaussNewton(rel_cost_decrease=GTSAM_RULE)):
         seconds, res = median_run(lambda: optimizer.solve(graph.problem("geodesic"), x0), repeat)
         rows.append(
