@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -32,24 +31,14 @@ import numpy as np
 
 from benchmarks import peers
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
-from problems import g2o
+from problems import catalogue, g2o
 from problems.pose_graph import PoseGraph
 from problems.reference import reference_solve
 
-# name: (published chordal f*, SE-Sync C++ time in s), from datasets/README.md.
-DATASETS: dict[str, tuple[float | None, float | None]] = {
-    "CSAIL": (3.170e1, 0.010),
-    "intel": (5.235e1, 0.071),
-    "manhattan": (6.431e3, 0.080),
-    "sphere2500": (1.687e3, 0.580),
-    "parking-garage": (1.263e0, 0.468),
-    "smallGrid3D": (None, None),
-}
+# name: (published chordal f*, SE-Sync C++ time in s), from the catalogue (datasets/README.md).
+DATASETS = {e.name: (e.published.get("chordal"), e.reference_time) for e in catalogue.DATASETS[:-1]}  # no tinyGrid3D
 GTSAM_RULE = 1e-5  # GTSAM's default relativeErrorTol
-
-
-def data_dir() -> Path:
-    return Path(os.environ.get("MANOPT_LIE_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"))
+data_dir = catalogue.default_data_dir
 
 
 def median_run(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:

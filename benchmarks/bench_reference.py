@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
 from problems import g2o, rotation_averaging, synthetic
+from problems.catalogue import default_data_dir
 from problems.pose_graph import PoseGraph
 from problems.reference import reference_solve
 from problems.rotation_averaging import RotationAveraging
@@ -38,8 +38,7 @@ from problems.rotation_averaging import RotationAveraging
 Spec = PoseGraph | RotationAveraging
 
 
-def data_dir() -> Path:
-    return Path(os.environ.get("MANOPT_LIE_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets"))
+data_dir = default_data_dir
 
 
 def dataset(name: str) -> Callable[[], Spec]:

@@ -69,6 +69,9 @@ def _stopping(parser: argparse.ArgumentParser, max_time: float) -> None:
                        help="seconds per run (default: %(default)s)")  # fmt: skip
     group.add_argument("--tol", type=_positive(float), default=1e-6,
                        help="gradient norm relative to the initial one (default: %(default)s)")  # fmt: skip
+    group.add_argument("--rel-decrease", type=float, default=0.0, metavar="R",
+                       help="also stop when the relative cost decrease of an iteration is below R (GTSAM's rule; "
+                       "default: off, and peers then use GTSAM's default 1e-5)")  # fmt: skip
 
 
 def _output(parser: argparse.ArgumentParser) -> None:
@@ -147,7 +150,7 @@ def _progress(quiet: bool) -> Any:
 def _settings(args: argparse.Namespace, repeat: int = 1) -> Any:
     from benchmarks.suite import Settings
 
-    return Settings(max_iterations=args.max_iterations, max_time=args.max_time, grad_rtol=args.tol, repeat=repeat)
+    return Settings(args.max_iterations, args.max_time, args.tol, args.rel_decrease, repeat)
 
 
 def _run_suite(entries: Any, args: argparse.Namespace, *, optimizers: Sequence[str], peers: Sequence[str],
@@ -247,7 +250,6 @@ def cmd_bench(args: argparse.Namespace) -> None:
 
 
 def cmd_solve(args: argparse.Namespace) -> None:
-    from benchmarks.suite import Settings
     from problems import g2o, rotation_averaging
 
     if not args.file.is_file():
@@ -267,7 +269,7 @@ def cmd_solve(args: argparse.Namespace) -> None:
         x0 = spec.chordal_initialization()
     init_time = time.perf_counter() - start
     problem = spec.problem(cost, robust=args.robust)
-    optimizer = Settings(args.max_iterations, args.max_time, args.tol).optimizer(args.optimizer)
+    optimizer = _settings(args).optimizer(args.optimizer)
     progress = _progress(args.quiet)
     if progress is None:
         result = optimizer.solve(problem, x0)

@@ -92,6 +92,7 @@ def test_console_script_is_installed() -> None:
         (["bench", "--peers", "ceres"], "ceres"),
         (["solve"], "required"),
         (["demo", "--max-time", "-1"], "positive"),
+        (["bench", "--rel-decrease", "2"], "rel_cost_decrease"),
         (["solve", "x.g2o", "--optimizer", "bfgs"], "bfgs"),
     ],
 )
@@ -124,6 +125,7 @@ def test_solve_json_and_outputs(graph_file: Path, tmp_path: Path) -> None:
         ["--init", "odometry", "--optimizer", "gn"],
         ["--init", "file", "--robust", "huber:1.0", "--optimizer", "lm"],
         ["--optimizer", "cg", "--max-iterations", "5"],
+        ["--optimizer", "lm", "--rel-decrease", "1e-3"],
     ],
 )
 def test_solve_options(graph_file: Path, options: list[str]) -> None:
