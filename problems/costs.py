@@ -156,16 +156,18 @@ def chordal_factor(
     z = measurements.as_matrix()
     w = np.sqrt(2.0) * weights[:, None, :]  # (m, 1, c): scales columns
     zw = z * w
-    basis = group.hat(np.eye(group.dim))  # (K, c, c)
+    dim, c = group.dim, z.shape[-1]
+    basis = group.hat(np.eye(dim)).transpose(1, 0, 2).reshape(c, dim * c)  # [E_0 … E_K−1] side by side
 
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
         ri, rj = _rows(xi), _rows(xj)
-        r = (rj * w - ri @ zw).reshape(len(ri), -1)
+        m, d = ri.shape[:2]
+        r = (rj * w - ri @ zw).reshape(m, -1)
         if not jac:
             return r
-        m, dim = len(ri), group.dim
-        j_j = np.einsum("eab,kbc,ec->eack", rj, basis, w[:, 0]).reshape(m, -1, dim)
-        j_i = -np.einsum("eab,kbc,ecf->eafk", ri, basis, zw).reshape(m, -1, dim)
+        # X E_k for every k in one matmul: (m, d, K, c), then the right factors W and Z W.
+        j_j = ((rj @ basis).reshape(m, d, dim, c) * w[:, :, None, :]).transpose(0, 1, 3, 2).reshape(m, -1, dim)
+        j_i = -np.einsum("eakc,ecf->eafk", (ri @ basis).reshape(m, d, dim, c), zw, optimize=True).reshape(m, -1, dim)
         return r, [j_i, j_j]
 
     return Factor(edges, residual, loss, name)
