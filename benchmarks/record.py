@@ -54,7 +54,12 @@ class Run:
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)
         out["gap"] = self.gap
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}
+        return {k: [_finite(x) for x in v] if isinstance(v, list) else _finite(v) for k, v in out.items()}
+
+
+def _finite(value: Any) -> Any:
+    """JSON has no nan or inf: they become null."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def best_costs(runs: list[Run]) -> dict[tuple[str, str], float]:

@@ -77,6 +77,15 @@ def test_help(command: list[str]) -> None:
     assert proc.returncode == 0 and proc.stdout.startswith("usage: manopt-lie"), proc.stderr
 
 
+def test_command_line_names_match_the_runner() -> None:
+    from benchmarks.peers import PEERS
+    from benchmarks.suite import OPTIMIZERS
+    from manopt_lie.cli import OPTIMIZER_NAMES, PEER_GROUPS
+
+    assert tuple(OPTIMIZERS) == OPTIMIZER_NAMES
+    assert sorted(p for group in PEER_GROUPS.values() for p in group) == sorted(PEERS)
+
+
 def test_console_script_is_installed() -> None:
     script = Path(sys.executable).parent / "manopt-lie"
     proc = subprocess.run([str(script), "--version"], capture_output=True, text=True, check=True)
