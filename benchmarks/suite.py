@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -182,7 +182,9 @@ def execute(
     display). An instance whose data file is missing raises ``FileNotFoundError``."""
     settings = settings or Settings()
     out = SuiteResult()
-    for task in _announce(tasks, on_task):
+    for task in tasks:
+        if on_task is not None:
+            on_task(task)
         name = task.entry.name
         if name not in out.loaded:
             out.loaded[name] = task.entry.load(data_dir)
@@ -198,13 +200,6 @@ def execute(
         out.runs.append(run)
         out.solutions[name, task.cost, task.solver] = x
     return out
-
-
-def _announce(tasks: Sequence[Task], on_task: Callable[[Task], None] | None) -> Iterator[Task]:
-    for task in tasks:
-        if on_task is not None:
-            on_task(task)
-        yield task
 
 
 def positions(loaded: Loaded, x: Any) -> Any:
