@@ -43,7 +43,7 @@ import scipy.sparse.linalg as spla  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.bench_groups import median_time  # noqa: E402
+from bench_groups import median_time  # noqa: E402
 from manopt_lie.linalg import BlockStructure, CholeskySolver  # noqa: E402
 
 

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import peers
+from manopt_lie.bench import peers
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
-from problems import catalogue, g2o
-from problems.pose_graph import PoseGraph
-from problems.reference import reference_solve
+from manopt_lie.problems import catalogue, g2o
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.reference import reference_solve
 
 # name: (published chordal f*, SE-Sync C++ time in s), from the catalogue (datasets/README.md).
 DATASETS = {e.name: (e.published.get("chordal"), e.reference_time) for e in catalogue.DATASETS[:-1]}  # no tinyGrid3D

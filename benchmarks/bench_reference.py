@@ -29,11 +29,11 @@ from typing import Any
 import numpy as np
 
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
-from problems import g2o, rotation_averaging, synthetic
-from problems.catalogue import default_data_dir
-from problems.pose_graph import PoseGraph
-from problems.reference import reference_solve
-from problems.rotation_averaging import RotationAveraging
+from manopt_lie.problems import g2o, rotation_averaging, synthetic
+from manopt_lie.problems.catalogue import default_data_dir
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.reference import reference_solve
+from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 Spec = PoseGraph | RotationAveraging
 

@@ -148,15 +148,15 @@ def _progress(quiet: bool) -> Any:
 
 
 def _settings(args: argparse.Namespace, repeat: int = 1) -> Any:
-    from benchmarks.suite import Settings
+    from manopt_lie.bench.suite import Settings
 
     return Settings(args.max_iterations, args.max_time, args.tol, args.rel_decrease, repeat)
 
 
 def _run_suite(entries: Any, args: argparse.Namespace, *, optimizers: Sequence[str], peers: Sequence[str],
                reference: bool, repeat: int, data_dir: Path | None) -> tuple[Any, Any]:  # fmt: skip
-    from benchmarks import peers as peer_adapters
-    from benchmarks.suite import execute, plan
+    from manopt_lie.bench import peers as peer_adapters
+    from manopt_lie.bench.suite import execute, plan
 
     for peer in peers:
         if not peer_adapters.available(peer):
@@ -180,8 +180,8 @@ def _run_suite(entries: Any, args: argparse.Namespace, *, optimizers: Sequence[s
 
 
 def _plots(result: Any, directory: Path) -> list[Path]:
-    from benchmarks import plots
-    from benchmarks.suite import positions
+    from manopt_lie.bench import plots
+    from manopt_lie.bench.suite import positions
 
     paths = plots.convergence_plots(result.runs, directory)
     paths.append(plots.performance_profile(result.runs, directory / "performance-profile.png"))
@@ -199,7 +199,7 @@ def _plots(result: Any, directory: Path) -> list[Path]:
 
 def _publish(result: Any, settings: Any, args: argparse.Namespace, *, title: str, out: Path | None,
              report: Path | None, plot_dir: Path | None) -> None:  # fmt: skip
-    from benchmarks import report as reports
+    from manopt_lie.bench import report as reports
 
     paths = _plots(result, plot_dir) if plot_dir is not None else []
     document = reports.document(result.runs, settings)
@@ -226,7 +226,7 @@ def _write(path: Path, text: str) -> None:
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
-    from problems.catalogue import SUITES
+    from manopt_lie.problems.catalogue import SUITES
 
     settings, result = _run_suite(SUITES["demo"], args, optimizers=OPTIMIZER_NAMES, peers=(), reference=False,
                                   repeat=1, data_dir=None)  # fmt: skip
@@ -236,7 +236,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
 
 def cmd_bench(args: argparse.Namespace) -> None:
-    from problems.catalogue import load_suite
+    from manopt_lie.problems.catalogue import load_suite
 
     entries = load_suite(args.suite)
     peers = [p for group in args.peers for p in PEER_GROUPS[group]]
@@ -250,7 +250,7 @@ def cmd_bench(args: argparse.Namespace) -> None:
 
 
 def cmd_solve(args: argparse.Namespace) -> None:
-    from problems import g2o, rotation_averaging
+    from manopt_lie.problems import g2o, rotation_averaging
 
     if not args.file.is_file():
         raise UsageError(f"no such file: {args.file}")
@@ -307,7 +307,7 @@ def _write_solution(path: Path, graph: Any, x: Any, problem: str) -> None:
     estimated rotations with zero translations)."""
     import numpy as np
 
-    from problems import g2o
+    from manopt_lie.problems import g2o
 
     if problem == "rotation-averaging":
         matrices = np.array(graph.group.identity((graph.n,)).as_matrix())
@@ -318,8 +318,8 @@ def _write_solution(path: Path, graph: Any, x: Any, problem: str) -> None:
 
 
 def _solve_plot(args: argparse.Namespace, spec: Any, x0: Any, result: Any, summary: dict[str, Any]) -> None:
-    from benchmarks import plots
-    from benchmarks.record import Run
+    from manopt_lie.bench import plots
+    from manopt_lie.bench.record import Run
 
     if args.problem == "pose-graph":
         d = spec.d

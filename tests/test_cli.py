@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from problems import g2o, synthetic
+from manopt_lie.problems import g2o, synthetic
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SOLVE_KEYS = {"fun", "nit", "time", "status", "grad_norm", "converged", "n", "m", "cost", "optimizer"}
@@ -78,8 +78,8 @@ def test_help(command: list[str]) -> None:
 
 
 def test_command_line_names_match_the_runner() -> None:
-    from benchmarks.peers import PEERS
-    from benchmarks.suite import OPTIMIZERS
+    from manopt_lie.bench.peers import PEERS
+    from manopt_lie.bench.suite import OPTIMIZERS
     from manopt_lie.cli import OPTIMIZER_NAMES, PEER_GROUPS
 
     assert tuple(OPTIMIZERS) == OPTIMIZER_NAMES

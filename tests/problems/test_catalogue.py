@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from problems import catalogue
-from problems.catalogue import SUITES, CatalogueError, Entry, load_suite
-from problems.pose_graph import PoseGraph
-from problems.rotation_averaging import RotationAveraging
+from manopt_lie.problems import catalogue
+from manopt_lie.problems.catalogue import SUITES, CatalogueError, Entry, load_suite
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 SYNTHETIC = sorted({e.name: e for suite in SUITES.values() for e in suite if e.generator}.items())
 

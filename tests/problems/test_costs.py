@@ -12,8 +12,8 @@ from manopt_lie import SE2, SE3, SO2, SO3
 from manopt_lie.check import check_gradient, check_hessian
 from manopt_lie.manifolds import LieGroupManifold, Power
 from manopt_lie.optim import LeastSquaresProblem
-from problems import PoseGraph, costs, initialization
-from problems.initialization import DisconnectedGraphError
+from manopt_lie.problems import PoseGraph, costs, initialization
+from manopt_lie.problems.initialization import DisconnectedGraphError
 
 GROUPS = [SO2, SO3, SE2, SE3]
 

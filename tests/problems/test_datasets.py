@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, Status, TrustRegion
-from problems import g2o, rotation_averaging
+from manopt_lie.problems import g2o, rotation_averaging
 
 # f* of SE-Sync (Rosen et al. 2019, Tables 1-2) as printed, see datasets/README.md.
 PUBLISHED = {

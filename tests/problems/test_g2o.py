@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from manopt_lie import SE2, SE3, SO2, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie.base import LieGroup
-from problems import PoseGraph, g2o
+from manopt_lie.problems import PoseGraph, g2o
 
 # The README's table (sizes checked against the files): group, vertices, edges, has VERTEX lines.
 DATASETS = {

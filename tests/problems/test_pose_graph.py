@@ -9,7 +9,7 @@ import pytest
 from manopt_lie import SE2, SE3, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, Status, TrustRegion
-from problems import PoseGraph, costs, evaluation, synthetic
+from manopt_lie.problems import PoseGraph, costs, evaluation, synthetic
 
 INSTANCES = {
     "grid2d": lambda **kw: synthetic.grid2d(12, 12, loop_closure_probability=0.3, seed=1, **kw),

@@ -12,9 +12,9 @@ import pytest
 from manopt_lie import SE2, SE3, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
-from problems import PoseGraph, evaluation, g2o, synthetic
-from problems.costs import IndefiniteInformationError
-from problems.reference import build_nlp, reference_solve
+from manopt_lie.problems import PoseGraph, evaluation, g2o, synthetic
+from manopt_lie.problems.costs import IndefiniteInformationError
+from manopt_lie.problems.reference import build_nlp, reference_solve
 
 RTOL_COST = 1e-6
 ATOL_POSES = 1e-5

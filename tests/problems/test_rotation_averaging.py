@@ -8,7 +8,7 @@ import pytest
 from manopt_lie import SE3, SO2, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, Status, TrustRegion
-from problems import PoseGraph, RotationAveraging, evaluation, rotation_averaging, synthetic
+from manopt_lie.problems import PoseGraph, RotationAveraging, evaluation, rotation_averaging, synthetic
 
 
 @pytest.mark.parametrize("d", [2, 3])

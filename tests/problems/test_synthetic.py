@@ -8,8 +8,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from manopt_lie import SE2, SE3, SO2, SO3
-from problems import PoseGraph, RotationAveraging, synthetic
-from problems.synthetic import Instance
+from manopt_lie.problems import PoseGraph, RotationAveraging, synthetic
+from manopt_lie.problems.synthetic import Instance
 
 # Small instances of every generator, by name.
 SMALL = {

@@ -35,9 +35,9 @@ import scipy.sparse as sp
 
 from manopt_lie import SE2, SE3, SO2, SO3
 from manopt_lie.lie.base import LieGroup
-from problems import costs
-from problems.pose_graph import PoseGraph
-from problems.rotation_averaging import RotationAveraging
+from manopt_lie.problems import costs
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 PEERS: dict[str, str] = {
     "gtsam-lm": "GTSAM LevenbergMarquardtOptimizer on BetweenFactorPose2/3 (geodesic pose-graph cost)",

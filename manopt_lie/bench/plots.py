@@ -16,7 +16,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-from benchmarks.record import Run, best_costs, solved
+from manopt_lie.bench.record import Run, best_costs, solved
 
 FLOOR = 1e-16
 """Relative suboptimalities are clipped to this floor so that a log axis shows zeros."""

@@ -27,8 +27,8 @@ from manopt_lie.optim import (
     TrustRegion,
 )
 from manopt_lie.optim.optimizer import Optimizer
-from problems.catalogue import Entry, Loaded
-from problems.pose_graph import PoseGraph
+from manopt_lie.problems.catalogue import Entry, Loaded
+from manopt_lie.problems.pose_graph import PoseGraph
 
 from . import peers as peer_adapters
 from .record import Run
@@ -154,7 +154,7 @@ def _peer(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run,
 
 
 def _reference(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run, Any]:
-    from problems.reference import reference_solve  # CasADi: imported only when asked for
+    from manopt_lie.problems.reference import reference_solve  # CasADi: imported only when asked for
 
     ref = reference_solve(loaded.spec, x0, cost=task.cost)
     run = _record(task, loaded, ref.time, ref.iterations, ref.fun, ref.status)
