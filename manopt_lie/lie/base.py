@@ -8,11 +8,13 @@ A group subclass supplies the *minimal* kernels on raw arrays (``_exp``,
 ``interpolate`` and all Jacobians — from the blocks of CONVENTIONS §4 (Solà et
 al., arXiv:1812.01537, eqs. 62–83).
 
-Jacobians are *right* (local) Jacobians,
-``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ``, except for ``lplus``/``lminus``, whose
-Jacobians are *left* (global frame) ones, ``J = lim (f(τ ⊕ X) ⊖ₗ f(X)) / τ``
-with ``τ ⊕ X = Exp(τ)X`` on inputs and outputs alike. They carry the batch
-axes of the result: shape ``(..., m, n)``.
+Every ``jac=True`` returns *right* (local) Jacobians (CONVENTIONS §4),
+``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ`` with ``X ⊕ τ = X·Exp(τ)``, vector inputs
+and outputs perturbed additively; ``lplus``/``lminus`` included. Those two also
+give *left* (global-frame) Jacobians on request, ``frame="left"``:
+``J = lim (f(τ ⊕ X) ⊖ₗ f(X)) / τ`` with ``τ ⊕ X = Exp(τ)·X``, related by
+``J_left = Ad_{f(X)} · J_right · Ad_X⁻¹`` (``Ad`` of a vector space is ``I``).
+Jacobians carry the batch axes of the result: shape ``(..., m, n)``.
 """
 
 from __future__ import annotations
@@ -30,6 +32,16 @@ from ._checks import FloatArray, as_batch, broadcast_batch
 
 G = TypeVar("G", bound="LieGroup")
 Jac = FloatArray
+Frame = Literal["right", "left"]
+_Diff = tuple[FloatArray, Jac, Jac]  # a tangent difference and its two Jacobians
+_FRAMES = ("right", "left")
+
+
+def _left(frame: str) -> bool:
+    """Whether ``frame`` asks for left Jacobians; ``ValueError`` unless it is ``"right"`` or ``"left"``."""
+    if frame not in _FRAMES:
+        raise ValueError(f"frame must be 'right' or 'left', got {frame!r}")
+    return frame == "left"
 
 
 def _bcast(j: FloatArray, batch: tuple[int, ...]) -> FloatArray:
@@ -356,15 +368,18 @@ class LieGroup:
         return tau, self._tangent_map(self._jr_inv, tau), -self._tangent_map(self._jr_inv, -tau)
 
     @overload
-    def lplus(self: G, tau: ArrayLike, jac: Literal[False] = ...) -> G: ...
+    def lplus(self: G, tau: ArrayLike, jac: Literal[False] = ..., *, frame: Frame = ...) -> G: ...
     @overload
-    def lplus(self: G, tau: ArrayLike, jac: Literal[True]) -> tuple[G, Jac, Jac]: ...
-    def lplus(self: G, tau: ArrayLike, jac: bool = False) -> G | tuple[G, Jac, Jac]:
-        """``τ ⊕ X = Exp(τ)·X``. **Left-frame** Jacobians: ``Ad_{Exp τ}``
-        wrt ``X`` and ``Jl(τ)`` wrt ``τ``, i.e. ``Exp(τ+δ)·Exp(ε)X ≈ Exp(Jl δ + Ad ε)·Y``.
+    def lplus(self: G, tau: ArrayLike, jac: Literal[True], *, frame: Frame = ...) -> tuple[G, Jac, Jac]: ...
+    def lplus(self: G, tau: ArrayLike, jac: bool = False, *, frame: Frame = "right") -> G | tuple[G, Jac, Jac]:
+        """``Y = τ ⊕ X = Exp(τ)·X``; Jacobians wrt ``X`` and ``τ``.
 
-        The right Jacobians follow as ``J_X = I`` and ``J_τ = Ad_Y⁻¹ Jl(τ)``.
+        Right (default): ``J_X = I``, ``J_τ = Ad_Y⁻¹ Jl(τ)``, as
+        ``Exp(τ + δ)·X·Exp(ε) ≈ Y·Exp(ε + Ad_Y⁻¹ Jl(τ) δ)``. ``frame="left"``:
+        ``J_X = Ad_{Exp τ}``, ``J_τ = Jl(τ)``, as ``Exp(τ + δ)·Exp(ε)·X ≈ Exp(Ad_{Exp τ} ε + Jl(τ) δ)·Y``.
+        Raises ``ValueError`` for any other ``frame``.
         """
+        left = _left(frame)
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
         if not jac:
@@ -372,20 +387,31 @@ class LieGroup:
             return self._wrap(blockwise(kernel, (self._data, t), (len(self.storage_shape), 1)))
         e = self._exp(t)
         y = self._wrap(self._compose(e, self._data))
-        return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(self._tangent_map(self._jr, -t), y.batch_shape)
+        j_t = self._tangent_map(self._jr, -t)  # Jl(τ)
+        if left:
+            return y, _bcast(self._adjoint(e), y.batch_shape), _bcast(j_t, y.batch_shape)
+        return y, _eye(self.dim, y.batch_shape), _bcast(self._adjoint(self._inverse(y._data)) @ j_t, y.batch_shape)
 
     @overload
-    def lminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
+    def lminus(self, other: LieGroup, jac: Literal[False] = ..., *, frame: Frame = ...) -> FloatArray: ...
     @overload
-    def lminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
-    def lminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
-        """``Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other``. **Left-frame**
-        Jacobians: ``Jl(τ)⁻¹`` wrt ``Y`` and ``−Jr(τ)⁻¹`` wrt ``X``."""
+    def lminus(self, other: LieGroup, jac: Literal[True], *, frame: Frame = ...) -> _Diff: ...
+    def lminus(self, other: LieGroup, jac: bool = False, *, frame: Frame = "right") -> FloatArray | _Diff:
+        """``τ = Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other``; Jacobians wrt ``Y`` and ``X``.
+
+        Right (default): ``J_Y = Jl(τ)⁻¹ Ad_Y``, ``J_X = −Jr(τ)⁻¹ Ad_X``. ``frame="left"``
+        (along ``Exp(ε)·Y`` and ``Exp(ε)·X``): ``J_Y = Jl(τ)⁻¹``, ``J_X = −Jr(τ)⁻¹``.
+        Raises ``ValueError`` for any other ``frame``.
+        """
+        left = _left(frame)
         x = self._operand(other)
         tau = self._blocks(lambda b, a: self._log(self._compose(b, self._inverse(a))), self._data, x)
         if not jac:
             return tau
-        return tau, self._tangent_map(self._jr_inv, -tau), -self._tangent_map(self._jr_inv, tau)
+        j_y, j_x = self._tangent_map(self._jr_inv, -tau), -self._tangent_map(self._jr_inv, tau)
+        if left:
+            return tau, j_y, j_x
+        return tau, j_y @ self._adjoint(self._data), j_x @ self._adjoint(x)
 
     @overload
     def between(self: G, other: G, jac: Literal[False] = ...) -> G: ...

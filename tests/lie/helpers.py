@@ -12,6 +12,7 @@ from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn
 GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Rn(3)]
 BATCH_SHAPES: list[tuple[int, ...]] = [(), (1,), (3, 1, 2)]
 REGIMES = ["identity", "tiny", "random", "uniform", "near_pi"]
+FRAMES = ["right", "left"]
 
 # Slice of the rotation coordinates inside each group's tangent vector.
 ROTATION_PART = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6)}
@@ -64,6 +65,8 @@ def numerical_jacobian(
     ``(±h e_k) ⊕ x``) and group-valued outputs compared with ``⊖`` of the same
     frame at ``f(x)``; array inputs and outputs use ``+`` and ``−``.
     """
+    if frame not in FRAMES:
+        raise ValueError(f"frame must be one of {FRAMES}, got {frame!r}")
     x = args[wrt]
     y0 = f(*args)
     dim = x.dim if isinstance(x, LieGroup) else np.shape(x)[-1]

@@ -7,8 +7,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from manopt_lie import SE3
+
 from .helpers import (
     BATCH_SHAPES,
+    FRAMES,
     GROUPS,
     REGIMES,
     assert_jacobian,
@@ -98,7 +101,7 @@ def test_jacobian_identities(group, batch, regime, seed):
 @regimes
 @given(seed=seeds)
 def test_jacobians_of_elements_vs_finite_differences(group, batch, regime, seed):
-    """exp, compose, inverse, act, rplus, between: right Jacobians; lplus: left ones."""
+    """exp, compose, inverse, act, rplus, between, lplus: right Jacobians; lplus also left ones."""
     rng = np.random.default_rng(seed)
     x, y = element(group, regime, batch, rng), element(group, regime, batch, rng)
     tau = tangent(group, regime, batch, rng)
@@ -126,9 +129,10 @@ def test_jacobians_of_elements_vs_finite_differences(group, batch, regime, seed)
     assert_jacobian(j_x, numerical_jacobian(lambda a, b: a.between(b), [x, y], 0))
     assert_jacobian(j_y, numerical_jacobian(lambda a, b: a.between(b), [x, y], 1))
 
-    _, j_x, j_t = x.lplus(tau, jac=True)
-    assert_jacobian(j_x, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 0, frame="left"))
-    assert_jacobian(j_t, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 1, frame="left"))
+    for frame in FRAMES:
+        _, j_x, j_t = x.lplus(tau, jac=True, frame=frame)
+        assert_jacobian(j_x, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 0, frame=frame))
+        assert_jacobian(j_t, numerical_jacobian(lambda a, t: a.lplus(t), [x, tau], 1, frame=frame))
 
 
 @battery
@@ -136,8 +140,8 @@ def test_jacobians_of_elements_vs_finite_differences(group, batch, regime, seed)
 @regimes
 @given(seed=seeds)
 def test_jacobians_of_tangents_vs_finite_differences(group, batch, regime, seed):
-    """log, rminus (right), lminus (left). Log is discontinuous at angle π, so the
-    near-π regime keeps a gap of 1e-4 > the finite-difference step."""
+    """log, rminus (right), lminus (right and left). Log is discontinuous at angle π,
+    so the near-π regime keeps a gap of 1e-4 > the finite-difference step."""
     rng = np.random.default_rng(seed)
     x = element(group, regime, batch, rng, pi_gap=1e-4)
     _, j = x.log(jac=True)
@@ -151,9 +155,53 @@ def test_jacobians_of_tangents_vs_finite_differences(group, batch, regime, seed)
     assert_jacobian(j_x, numerical_jacobian(lambda b, a: b.rminus(a), [y, x], 1))
 
     y = x.lplus(tau)
-    _, j_y, j_x = y.lminus(x, jac=True)
-    assert_jacobian(j_y, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 0, frame="left"))
-    assert_jacobian(j_x, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 1, frame="left"))
+    for frame in FRAMES:
+        _, j_y, j_x = y.lminus(x, jac=True, frame=frame)
+        assert_jacobian(j_y, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 0, frame=frame))
+        assert_jacobian(j_x, numerical_jacobian(lambda b, a: b.lminus(a), [y, x], 1, frame=frame))
+
+
+@battery
+@shapes
+@regimes
+@given(seed=seeds)
+def test_left_jacobians_are_converted_right_ones(group, batch, regime, seed):
+    """``J_left = Ad_{f(X)} · J_right · Ad_X⁻¹`` for lplus and lminus (``Ad = I`` on vectors),
+    and the closed forms of both frames (CONVENTIONS §4)."""
+    rng = np.random.default_rng(seed)
+    x = element(group, regime, batch, rng)
+    tau = tangent(group, regime, batch, rng)
+    eye = np.broadcast_to(np.eye(group.dim), batch + (group.dim, group.dim))
+    ad_x, ad_x_inv = x.adjoint(), x.inverse().adjoint()
+
+    y, r_x, r_t = x.lplus(tau, jac=True)
+    _, l_x, l_t = x.lplus(tau, jac=True, frame="left")
+    ad_y = y.adjoint()
+    np.testing.assert_allclose(l_x, ad_y @ r_x @ ad_x_inv, atol=1e-9 * max(1.0, np.abs(l_x).max()))
+    np.testing.assert_allclose(l_t, ad_y @ r_t, atol=1e-9 * max(1.0, np.abs(l_t).max()))
+    np.testing.assert_allclose(r_x, eye, atol=0)
+    np.testing.assert_allclose(r_t, y.inverse().adjoint() @ group.jl(tau), atol=1e-12)
+    np.testing.assert_allclose(l_x, group.exp(tau).adjoint(), atol=1e-12)
+    np.testing.assert_allclose(l_t, group.jl(tau), atol=0)
+
+    t, r_y, r_x = y.lminus(x, jac=True)
+    _, l_y, l_x = y.lminus(x, jac=True, frame="left")
+    np.testing.assert_allclose(l_y, r_y @ y.inverse().adjoint(), atol=1e-9 * max(1.0, np.abs(l_y).max()))
+    np.testing.assert_allclose(l_x, r_x @ ad_x_inv, atol=1e-9 * max(1.0, np.abs(l_x).max()))
+    np.testing.assert_allclose(r_y, group.jl_inv(t) @ ad_y, atol=1e-12 * max(1.0, np.abs(r_y).max()))
+    np.testing.assert_allclose(r_x, -group.jr_inv(t) @ ad_x, atol=1e-12 * max(1.0, np.abs(r_x).max()))
+    np.testing.assert_allclose(l_y, group.jl_inv(t), atol=0)
+    np.testing.assert_allclose(l_x, -group.jr_inv(t), atol=0)
+
+
+@pytest.mark.parametrize("method", ["lplus", "lminus"])
+def test_frame_must_be_right_or_left(method):
+    x = SE3.identity()
+    arg = np.zeros(6) if method == "lplus" else x
+    with pytest.raises(ValueError, match=r"frame must be 'right' or 'left', got 'global'"):
+        getattr(x, method)(arg, jac=True, frame="global")
+    with pytest.raises(ValueError, match="frame"):
+        getattr(x, method)(arg, frame="Left")
 
 
 @battery
