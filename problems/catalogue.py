@@ -12,7 +12,7 @@ dataset and larger synthetic instances) and ``demo`` (the embedded default of
     name = "cube-8"                  # unique
     generator = "cube"               # a function of problems.synthetic …
     params = { side = 8, seed = 1 }
-    costs = ["chordal", "geodesic"]  # optional (default: both; rotation averaging: chordal)
+    costs = ["chordal", "geodesic"]  # optional (default: the kind's, see problems.kinds)
 
     [[instance]]
     name = "intel"
@@ -31,12 +31,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from . import g2o, rotation_averaging, synthetic
+from . import g2o, synthetic
+from .graph import MeasurementGraph
+from .kinds import KINDS, get_kind
 from .pose_graph import PoseGraph
 from .rotation_averaging import RotationAveraging
 
-PROBLEMS = ("pose-graph", "rotation-averaging")
-GENERATORS = ("cube", "grid2d", "sphere", "torus", "circle2d", "rotation_averaging")
+GENERATORS: dict[str, str] = {  # the generators of problems.synthetic and the kind each makes
+    **dict.fromkeys(("cube", "grid2d", "sphere", "torus", "circle2d"), PoseGraph.kind),
+    "rotation_averaging": RotationAveraging.kind,
+}
 DATA_ENV = "MANOPT_LIE_DATA"
 
 
@@ -56,7 +60,7 @@ class Loaded:
     """A catalogue entry made concrete: the problem and, for synthetic ones, the truth."""
 
     entry: Entry
-    spec: PoseGraph | RotationAveraging
+    spec: MeasurementGraph
     truth: Any = None
 
 
@@ -67,36 +71,41 @@ class Entry:
     Attributes
     ----------
     name : unique name in its suite
-    problem : "pose-graph" or "rotation-averaging" (of the source's rotations)
+    problem : a kind of :mod:`manopt_lie.problems.kinds` ("pose-graph", or "rotation-averaging" of the
+        source's rotations)
     generator, params : a :mod:`problems.synthetic` function and its keyword arguments
     file : a g2o file name, relative to the data directory (or absolute)
-    costs : the costs to run ("chordal", "geodesic")
+    costs : the costs to run (default: the kind's ``bench_costs``)
     published : published optimum per cost, e.g. ``{"chordal": 52.35}`` (SE-Sync's f*)
     reference_time : a published peer time in seconds (SE-Sync C++), for context
     """
 
     name: str
-    problem: str = "pose-graph"
+    problem: str = PoseGraph.kind
     generator: str | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
     file: str | None = None
-    costs: tuple[str, ...] = ("chordal", "geodesic")
+    costs: tuple[str, ...] | None = None  # default: the kind's bench_costs
     published: Mapping[str, float] = field(default_factory=dict)
     reference_time: float | None = None
 
     def __post_init__(self) -> None:
         where = f"instance {self.name!r}"
-        if self.problem not in PROBLEMS:
-            raise CatalogueError(f"{where}: problem must be one of {PROBLEMS}, got {self.problem!r}")
+        if self.problem not in KINDS:
+            raise CatalogueError(f"{where}: problem must be one of {tuple(KINDS)}, got {self.problem!r}")
         if (self.generator is None) == (self.file is None):
             raise CatalogueError(f"{where}: give exactly one of 'generator' and 'file'")
         if self.generator is not None and self.generator not in GENERATORS:
-            raise CatalogueError(f"{where}: generator must be one of {GENERATORS}, got {self.generator!r}")
-        if self.generator == "rotation_averaging" and self.problem != "rotation-averaging":
-            raise CatalogueError(f"{where}: the rotation_averaging generator makes a rotation-averaging problem")
-        bad = [c for c in self.costs if c not in ("chordal", "geodesic")]
+            raise CatalogueError(f"{where}: generator must be one of {tuple(GENERATORS)}, got {self.generator!r}")
+        made = GENERATORS.get(self.generator, PoseGraph.kind) if self.generator is not None else PoseGraph.kind
+        if made != self.problem and made != PoseGraph.kind:  # only pose graphs convert to other kinds
+            raise CatalogueError(f"{where}: the {self.generator} generator makes a {made} problem, not {self.problem}")
+        kind = KINDS[self.problem]
+        if self.costs is None:
+            object.__setattr__(self, "costs", kind.bench_costs)
+        bad = [c for c in self.costs if c not in kind.graph.costs]
         if not self.costs or bad:
-            raise CatalogueError(f"{where}: costs must be a non-empty subset of ('chordal', 'geodesic'), got {bad}")
+            raise CatalogueError(f"{where}: costs must be a non-empty subset of {kind.graph.costs}, got {bad}")
         for cost, value in self.published.items():
             if cost not in self.costs or not isinstance(value, int | float) or not math.isfinite(value):
                 raise CatalogueError(f"{where}: published optimum for {cost!r} must be a number for a listed cost")
@@ -129,9 +138,9 @@ class Entry:
             if not path.is_file():
                 raise FileNotFoundError(f"instance {self.name!r}: no such file {path}")
             spec = g2o.read(path)
-        if self.problem == "rotation-averaging" and isinstance(spec, PoseGraph):
-            spec = rotation_averaging.from_pose_graph(spec)
-            truth = None if truth is None else truth.rotation()
+        if spec.kind != self.problem:  # e.g. the rotation averaging of a pose graph
+            kind = get_kind(self.problem)
+            spec, truth = kind.from_pose_graph(spec), None if truth is None else kind.from_poses(truth)
         return Loaded(self, spec, truth)
 
 
@@ -156,7 +165,7 @@ DATASETS = (
 
 def _rotations(n: int, degree: float) -> Entry:
     return Entry(
-        f"rotations-{n}", "rotation-averaging", generator="rotation_averaging", costs=("chordal",),
+        f"rotations-{n}", RotationAveraging.kind, generator="rotation_averaging",
         params={"n": n, "degree": degree, "noise": 0.05, "seed": 0},
     )  # fmt: skip
 
@@ -171,7 +180,7 @@ SUITES: dict[str, tuple[Entry, ...]] = {
     ),
     "full": (
         *DATASETS,
-        Entry("sphere2500-rotations", "rotation-averaging", file="sphere2500.g2o", costs=("chordal",)),
+        Entry("sphere2500-rotations", RotationAveraging.kind, file="sphere2500.g2o"),
         Entry("cube-15", generator="cube", params={"side": 15, "seed": 0}),
         Entry("torus-20x100", generator="torus", params={"n_laps": 20, "poses_per_lap": 100, "seed": 0}),
         _rotations(2000, 10),
@@ -186,8 +195,6 @@ def _entry(table: Any, where: str) -> Entry:
     if unknown := set(table) - known:
         raise CatalogueError(f"{where}: unknown keys {sorted(unknown)} (known: {sorted(known)})")
     args = dict(table)
-    if args.get("problem", "pose-graph") == "rotation-averaging":
-        args.setdefault("costs", ["chordal"])
     if "costs" in args:
         args["costs"] = tuple(args["costs"])
     if "published" in args and not isinstance(args["published"], dict):

@@ -173,33 +173,48 @@ def chordal_factor(
     return Factor(edges, residual, loss, name)
 
 
+def chordal_quadratic_form(n: int, edges: IntArray, measurements: LieGroup, weights: FloatArray) -> sp.csr_matrix:
+    """``Q`` with ``Σ_e ‖(X_j − X_i Z_e) W_e‖_F² = tr(X Q Xᵀ)`` for the stacked top rows
+    ``X = [X_1 … X_n]`` (``d × nc``):
+    ``Q = Σ_e (e_j ⊗ I − e_i ⊗ Z_e) W_e² (e_j ⊗ I − e_i ⊗ Z_e)ᵀ``, ``nc × nc``
+    (for rotations the connection Laplacian of SE-Sync and Shonan averaging)."""
+    c = weights.shape[1]
+    z, w2 = measurements.as_matrix(), weights**2
+    zw2 = z * w2[:, None, :]  # Z W²
+    blocks = [
+        (edges[:, 1], edges[:, 1], np.einsum("ij,ei->eij", np.eye(c), w2)),
+        (edges[:, 0], edges[:, 0], zw2 @ np.swapaxes(z, 1, 2)),
+        (edges[:, 0], edges[:, 1], -zw2),
+        (edges[:, 1], edges[:, 0], -np.swapaxes(zw2, 1, 2)),
+    ]
+    a = np.arange(c)
+    shape = (len(edges), c, c)
+    rows = np.concatenate([np.broadcast_to(b[:, None, None] * c + a[:, None], shape).ravel() for b, _, _ in blocks])
+    cols = np.concatenate([np.broadcast_to(b[:, None, None] * c + a, shape).ravel() for _, b, _ in blocks])
+    vals = np.concatenate([v.ravel() for _, _, v in blocks])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n * c, n * c))
+
+
+def quadratic_form_gradient(q: sp.spmatrix, rows: FloatArray) -> FloatArray:
+    """``2 V Q`` (the Euclidean gradient of ``tr(V Q Vᵀ)``) for blocks ``V`` of shape
+    ``(n, d, c)``, returned as ``(n, d, c)``."""
+    n, d, c = rows.shape
+    return 2.0 * (q @ rows.transpose(0, 2, 1).reshape(n * c, d)).reshape(n, c, d).transpose(0, 2, 1)
+
+
 class ChordalHessian:
     """The exact Riemannian Hessian of the chordal cost on ``Power(G, n)``.
 
-    ``f(X) = tr(X Q Xᵀ)`` with ``Q = Σ_e (e_j ⊗ I − e_i ⊗ Z_e) W_e² (e_j ⊗ I − e_i ⊗ Z_e)ᵀ``
-    (``n c × n c``, assembled once), so ``∇f = 2XQ`` and ``∇²f[V] = 2VQ``;
-    the manifold turns them into ``Hess f(X)[v]`` (its ``ehess2rhess``). Fixed
-    variables see the identity, as in the Gauss-Newton model.
+    ``f(X) = tr(X Q Xᵀ)`` (:func:`chordal_quadratic_form`), so ``∇f = 2XQ`` and
+    ``∇²f[V] = 2VQ``; the manifold turns them into ``Hess f(X)[v]`` (its
+    ``ehess2rhess``). Fixed variables see the identity, as in the Gauss-Newton model.
     """
 
     def __init__(
         self, manifold: Power, edges: IntArray, measurements: LieGroup, weights: FloatArray, fixed: IntArray
     ) -> None:
         n, c = manifold.shape[0], weights.shape[1]
-        z, w2 = measurements.as_matrix(), weights**2
-        zw2 = z * w2[:, None, :]  # Z W²
-        blocks = [
-            (edges[:, 1], edges[:, 1], np.einsum("ij,ei->eij", np.eye(c), w2)),
-            (edges[:, 0], edges[:, 0], zw2 @ np.swapaxes(z, 1, 2)),
-            (edges[:, 0], edges[:, 1], -zw2),
-            (edges[:, 1], edges[:, 0], -np.swapaxes(zw2, 1, 2)),
-        ]
-        a = np.arange(c)
-        shape = (len(edges), c, c)
-        rows = np.concatenate([np.broadcast_to(b[:, None, None] * c + a[:, None], shape).ravel() for b, _, _ in blocks])
-        cols = np.concatenate([np.broadcast_to(b[:, None, None] * c + a, shape).ravel() for _, b, _ in blocks])
-        vals = np.concatenate([v.ravel() for _, _, v in blocks])
-        self.Q = sp.csr_matrix((vals, (rows, cols)), shape=(n * c, n * c))
+        self.Q = chordal_quadratic_form(n, edges, measurements, weights)
         self.manifold, self.n, self.c = manifold, n, c
         self.fixed = np.asarray(fixed, dtype=np.int64)
 
@@ -207,7 +222,7 @@ class ChordalHessian:
         """``2 V Q`` for ``V`` of shape ``(n, d, c)``, zero-padded to ``(n, c, c)`` matrices."""
         n, d, c = v.shape
         out = np.zeros((n, c, c))
-        out[:, :d, :] = 2.0 * (self.Q @ v.transpose(0, 2, 1).reshape(n * c, d)).reshape(n, c, d).transpose(0, 2, 1)
+        out[:, :d, :] = quadratic_form_gradient(self.Q, v)
         return out
 
     def egrad(self, x: LieGroup) -> FloatArray:

@@ -86,14 +86,12 @@ def errors(estimate: LieGroup, truth: LieGroup) -> Errors:
     return Errors(angle, translation)
 
 
-def edge_residuals(problem: Any, x: LieGroup) -> dict[str, Any]:
-    """Per-edge whitened residual norms ``‖Lᵀr_e‖`` of a pose graph or rotation averaging
-    instance at ``x`` (geodesic residuals ``r_e = Log(Z_e⁻¹X_i⁻¹X_j)``), with summary
-    statistics and the ``chi2`` value ``Σ‖Lᵀr_e‖²`` — large entries point at outliers."""
-    r = costs.geodesic_residuals(x, problem.edges, problem.measurements)
-    if hasattr(problem, "information"):
-        chi2 = np.einsum("ei,eij,ej->e", r, problem.information, r)
-    else:
-        chi2 = problem.kappa * np.einsum("ei,ei->e", r, r)
+def edge_residuals(graph: Any, x: LieGroup) -> dict[str, Any]:
+    """Per-edge whitened residual norms ``‖Lᵀr_e‖`` of a measurement graph at ``x``
+    (geodesic residuals ``r_e = Log(Z_e⁻¹X_i⁻¹X_j)``, ``Ω_e = L Lᵀ`` its
+    ``information``), with summary statistics and the ``chi2`` value ``Σ rᵀΩr`` —
+    large entries point at outliers."""
+    r = costs.geodesic_residuals(x, graph.edges, graph.measurements)
+    chi2 = np.einsum("ei,eij,ej->e", r, graph.information, r)
     norms = np.sqrt(np.maximum(chi2, 0.0))
     return {"norms": norms, "stats": Stats.of(norms), "chi2": float(np.sum(chi2))}

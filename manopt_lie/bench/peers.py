@@ -31,25 +31,37 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from manopt_lie import SE2, SE3, SO2, SO3
 from manopt_lie.lie.base import LieGroup
 from manopt_lie.problems import costs
+from manopt_lie.problems.graph import MeasurementGraph
 from manopt_lie.problems.pose_graph import PoseGraph
 from manopt_lie.problems.rotation_averaging import RotationAveraging
 
-PEERS: dict[str, str] = {
-    "gtsam-lm": "GTSAM LevenbergMarquardtOptimizer on BetweenFactorPose2/3 (geodesic pose-graph cost)",
-    "gtsam-dogleg": "GTSAM DoglegOptimizer on BetweenFactorPose2/3 (geodesic pose-graph cost)",
-    "pymanopt-tr": "pymanopt TrustRegions on SpecialOrthogonalGroup^n, exact Hessian (chordal rotation averaging)",
-}
-_MODULE = {"gtsam-lm": "gtsam", "gtsam-dogleg": "gtsam", "pymanopt-tr": "pymanopt"}
-_APPLIES = {
-    "gtsam-lm": ("pose-graph", "geodesic"),
-    "gtsam-dogleg": ("pose-graph", "geodesic"),
-    "pymanopt-tr": ("rotation-averaging", "chordal"),
-}
+
+@dataclass(frozen=True)
+class Peer:
+    """A peer solver: the library it needs and the one ``(kind, cost)`` it solves."""
+
+    name: str
+    summary: str
+    module: str
+    kind: str
+    cost: str
+
+
+PEERS: dict[str, Peer] = {
+    peer.name: peer
+    for peer in (
+        Peer("gtsam-lm", "GTSAM LevenbergMarquardtOptimizer on BetweenFactorPose2/3 (geodesic pose-graph cost)",
+             "gtsam", PoseGraph.kind, "geodesic"),
+        Peer("gtsam-dogleg", "GTSAM DoglegOptimizer on BetweenFactorPose2/3 (geodesic pose-graph cost)",
+             "gtsam", PoseGraph.kind, "geodesic"),
+        Peer("pymanopt-tr", "pymanopt TrustRegions on SpecialOrthogonalGroup^n, exact Hessian (chordal rotation "
+             "averaging)", "pymanopt", RotationAveraging.kind, "chordal"),
+    )
+}  # fmt: skip
 
 
 class PeerUnavailableError(ImportError):
@@ -86,14 +98,14 @@ class PeerRun:
     history_time: list[float]
 
 
-def _check(name: str) -> None:
+def _peer(name: str) -> Peer:
     if name not in PEERS:
         raise ValueError(f"unknown peer {name!r}; choose from {', '.join(PEERS)}")
+    return PEERS[name]
 
 
 def _import(name: str) -> Any:
-    _check(name)
-    module = _MODULE[name]
+    module = _peer(name).module
     try:
         return importlib.import_module(module)
     except ImportError as exc:
@@ -111,15 +123,15 @@ def available(name: str) -> bool:
     return True
 
 
-def applies(name: str, problem: str, cost: str) -> bool:
-    """Whether peer ``name`` solves ``problem`` (``"pose-graph"``, ``"rotation-averaging"``) with ``cost``."""
-    _check(name)
-    return _APPLIES[name] == (problem, cost)
+def applies(name: str, kind: str, cost: str) -> bool:
+    """Whether peer ``name`` solves problems of ``kind`` (a graph's ``kind``) with ``cost``."""
+    peer = _peer(name)
+    return (peer.kind, peer.cost) == (kind, cost)
 
 
 def solve(
     name: str,
-    spec: PoseGraph | RotationAveraging,
+    spec: MeasurementGraph,
     x0: LieGroup,
     *,
     max_iterations: int = 100,
@@ -132,17 +144,16 @@ def solve(
     Raises
     ------
     ValueError
-        An unknown peer, or a problem it does not apply to.
+        An unknown peer, or a problem kind it does not solve.
     PeerUnavailableError
         The peer's library is not installed.
     """
-    _check(name)
-    problem = "pose-graph" if isinstance(spec, PoseGraph) else "rotation-averaging"
-    if _APPLIES[name][0] != problem:
-        raise ValueError(f"peer {name!r} solves {'/'.join(_APPLIES[name])} problems, not {problem}")
-    if isinstance(spec, PoseGraph):
-        return _gtsam(name, spec, x0, max_iterations, rel_cost_decrease, max_time)
-    return _pymanopt_tr(spec, x0, max_iterations, grad_rtol, max_time)
+    peer = _peer(name)
+    if spec.kind != peer.kind:
+        raise ValueError(f"peer {name!r} solves {peer.kind}/{peer.cost} problems, not {spec.kind}")
+    run = _RUNS[peer.module]
+    return run(name, spec, x0, max_iterations=max_iterations, rel_cost_decrease=rel_cost_decrease,
+               grad_rtol=grad_rtol, max_time=max_time)  # fmt: skip
 
 
 # ---- GTSAM ------------------------------------------------------------------------------
@@ -196,7 +207,8 @@ def _from_gtsam(gtsam: Any, group: type[LieGroup], values: Any) -> LieGroup:
 
 
 def _gtsam(
-    name: str, graph: PoseGraph, x0: LieGroup, max_iterations: int, rel_cost_decrease: float, max_time: float
+    name: str, graph: PoseGraph, x0: LieGroup, *, max_iterations: int, rel_cost_decrease: float, max_time: float,
+    **_: Any,
 ) -> PeerRun:
     gtsam = _import(name)
     factors, values = _gtsam_problem(gtsam, graph, x0)
@@ -237,44 +249,29 @@ def _gtsam(
 # ---- pymanopt ---------------------------------------------------------------------------
 
 
-def _chordal_rotations(spec: RotationAveraging) -> tuple[Any, Any, Any]:
-    """``(cost, egrad, ehess)`` of ``f(R) = Σ κ‖R_j − R_i R̃‖_F²`` on stacked rotations ``(n, d, d)``:
-    with ``E = R_j − R_i R̃``, ``∂f/∂R_j = Σ 2κE`` and ``∂f/∂R_i = −Σ 2κE R̃ᵀ``; ``f`` is
-    quadratic, so ``ehess(R, U)`` is ``egrad`` of the residuals ``U_j − U_i R̃``."""
-    n, d, m = spec.n, spec.d, spec.m
-    i, j = spec.edges[:, 0], spec.edges[:, 1]
-    z = spec.measurements.as_matrix()
-    zt = np.swapaxes(z, 1, 2)
-    kappa = spec.kappa
-    # Sums over the edges into their end vertices as sparse products (n, 2m) @ (2m, d²).
-    rows = np.concatenate([j, i])
-    scatter = sp.csr_matrix((np.repeat([1.0, -1.0], m), (rows, np.arange(2 * m))), shape=(n, 2 * m))
-    w = 2.0 * kappa[:, None, None]
-
-    def residuals(r: np.ndarray) -> np.ndarray:
-        return r[j] - r[i] @ z
-
-    def gather(e: np.ndarray) -> np.ndarray:
-        we = w * e
-        return np.asarray(scatter @ np.concatenate([we, we @ zt]).reshape(2 * m, d * d)).reshape(n, d, d)
-
-    def cost(r: np.ndarray) -> float:
-        e = residuals(r)
-        return float(np.einsum("e,eab,eab->", kappa, e, e))
+def _chordal_rotations(spec: MeasurementGraph) -> tuple[Any, Any, Any]:
+    """``(cost, egrad, ehess)`` of ``f(R) = Σ κ‖R_j − R_i R̃‖_F² = tr(X Q Xᵀ)`` on stacked rotations
+    ``(n, d, d)``, ``Q`` the connection Laplacian (:func:`~manopt_lie.problems.costs.chordal_quadratic_form`):
+    ``∇f = 2XQ``, and ``f`` is quadratic, so ``∇²f[U] = 2UQ``."""
+    q = costs.chordal_quadratic_form(spec.n, spec.edges, spec.measurements, spec.chordal_weights())
 
     def egrad(r: np.ndarray) -> np.ndarray:
-        return gather(residuals(r))
+        return costs.quadratic_form_gradient(q, r)
+
+    def cost(r: np.ndarray) -> float:
+        return 0.5 * float(np.sum(r * egrad(r)))
 
     def ehess(r: np.ndarray, u: np.ndarray) -> np.ndarray:
-        return gather(residuals(u))
+        return egrad(u)
 
     return cost, egrad, ehess
 
 
 def _pymanopt_tr(
-    spec: RotationAveraging, x0: LieGroup, max_iterations: int, grad_rtol: float, max_time: float
+    name: str, spec: MeasurementGraph, x0: LieGroup, *, max_iterations: int, grad_rtol: float, max_time: float,
+    **_: Any,
 ) -> PeerRun:
-    pymanopt = _import("pymanopt-tr")
+    pymanopt = _import(name)
     cost, egrad, ehess = _chordal_rotations(spec)
     manifold = pymanopt.manifolds.SpecialOrthogonalGroup(spec.d, k=spec.n)
     r0 = np.array(x0.as_matrix(), dtype=np.float64)
@@ -330,3 +327,6 @@ def _pymanopt_tr(
     )
     x = spec.group.from_matrix(result.point, project=True)
     return PeerRun(x, int(result.iterations), seconds, status, status == "converged", history_cost, history_time)
+
+
+_RUNS: dict[str, Any] = {"gtsam": _gtsam, "pymanopt": _pymanopt_tr}

@@ -244,7 +244,7 @@ def test_indefinite_information_is_read_and_reported_by_lint():
     np.testing.assert_allclose(report.min_eigenvalues, [-2.0, -1.0], atol=1e-12)
     assert not report.ok and report.connected
     assert "2 information matrices not positive definite: 1→2 (λmin -2), 2→0 (λmin -1)" in str(report)
-    assert graph.validate().indefinite.tolist() == [1, 2]
+    assert g2o.lint(graph).indefinite.tolist() == [1, 2]
     assert_round_trip(graph)
 
 

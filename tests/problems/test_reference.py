@@ -254,7 +254,7 @@ def test_bad_input_is_rejected():
         reference_solve(graph, x0[:-1])
     with pytest.raises(ValueError, match="unknown robust loss"):
         reference_solve(graph, x0, robust="tukey:1.0")
-    with pytest.raises(TypeError, match="PoseGraph or RotationAveraging"):
+    with pytest.raises(TypeError, match="must be a MeasurementGraph"):
         reference_solve(graph.measurements, x0)
 
 

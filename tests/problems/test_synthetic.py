@@ -270,14 +270,14 @@ def test_invalid_arguments_raise(call, match):
 
 def test_pair_indexing_is_a_bijection():
     for n in (2, 3, 7, 50):
-        pairs = synthetic._pairs_from_index(np.arange(n * (n - 1) // 2), n)
+        pairs = synthetic.rotations._pairs_from_index(np.arange(n * (n - 1) // 2), n)
         np.testing.assert_array_equal(pairs, np.stack(np.triu_indices(n, 1), axis=1))
     n = 100_000  # large n: floating point must not put a pair in the wrong row
     rows = np.array([1, 2, 50_000, n - 2])
-    starts = synthetic._pair_index(rows, rows + 1, n)
+    starts = synthetic.rotations._pair_index(rows, rows + 1, n)
     for t in (starts, starts - 1, starts[:-1] + 1):  # row n − 2 holds one pair
-        i, j = synthetic._pairs_from_index(t, n).T
-        assert np.all((i < j) & (j < n)) and np.array_equal(synthetic._pair_index(i, j, n), t)
+        i, j = synthetic.rotations._pairs_from_index(t, n).T
+        assert np.all((i < j) & (j < n)) and np.array_equal(synthetic.rotations._pair_index(i, j, n), t)
 
 
 def test_large_instances():

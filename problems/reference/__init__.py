@@ -41,8 +41,10 @@ form, on a *safe* argument, above it (CasADi's ``if_else`` zeroes the unused bra
 first and second derivatives at zero residual. Residual rotations by exactly ``π`` (the cut
 locus, where ``Log`` itself is not differentiable) are not handled.
 
-The gauge is fixed by removing the anchor (``spec.anchor`` for pose graphs, rotation 0 for
-rotation averaging) from the variables, at its value in ``x0``.
+The gauge is fixed by removing the anchor (``graph.anchor``) from the variables, at its
+value in ``x0``. The NLP is the same for every
+:class:`~manopt_lie.problems.graph.MeasurementGraph`: translations appear exactly when the
+graph's group has them (``graph.has_translations``).
 """
 
 from __future__ import annotations
@@ -57,15 +59,14 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from manopt_lie import SO2, SO3
 from manopt_lie.errors import ShapeError
-from manopt_lie.lie._matrix import assemble, project_rotation
+from manopt_lie.lie._matrix import assemble
 from manopt_lie.lie.base import LieGroup
-from manopt_lie.optim.losses import L1, Cauchy, GemanMcClure, Huber, RobustLoss, Trivial, TruncatedL2, parse_loss
+from manopt_lie.optim.losses import RobustLoss, Trivial, parse_loss
 
-from . import costs
-from .pose_graph import PoseGraph
-from .rotation_averaging import RotationAveraging
+from .. import costs
+from ..graph import MeasurementGraph
+from .rotations import _cross, _half_cot, _jl_inv_coefficient, _rho, _Rotations, rotations
 
 __all__ = ["PARAMETRIZATIONS", "ReferenceNLP", "ReferenceResult", "build_nlp", "reference_solve"]
 
@@ -136,193 +137,13 @@ class ReferenceResult:
     message: str = ""
 
 
-# ---- scalar helpers, safe at zero residual ----------------------------------------------
-
-
-def _series(t: Any, coefficients: tuple[float, ...]) -> Any:
-    """``Σ_k c_k tᵏ`` (Horner)."""
-    out = coefficients[-1]
-    for c in coefficients[-2::-1]:
-        out = out * t + c
-    return out
-
-
-def _atan2_ratio(s2: Any, c: Any) -> Any:
-    """``g = atan2(s, c)/s`` with ``s = √s2``: ``g·a`` is the rotation vector when ``a = sin θ u``,
-    ``c ∝ cos θ``. Series ``(1/c)(1 − x²/3 + x⁴/5)``, ``x² = s2/c²``, below ``x² = 1e-6`` (c > 0)."""
-    small = ca.logic_and(c > 0, s2 < 1e-6 * c * c)
-    c_safe = ca.if_else(small, c, 1.0)
-    s_safe = ca.sqrt(ca.if_else(small, 1.0, ca.fmax(s2, 1e-300)))
-    series = _series(s2 / (c_safe * c_safe), (1.0, -1.0 / 3.0, 1.0 / 5.0)) / c_safe
-    return ca.if_else(small, series, ca.atan2(s_safe, c) / s_safe)
-
-
-def _jl_inv_coefficient(theta2: Any) -> Any:
-    """``β = 1/θ² − cot(θ/2)/(2θ)``, the ``[θ]×²`` coefficient of ``Jl(θ)⁻¹`` (CONVENTIONS §3)."""
-    small = theta2 < 1e-4
-    theta = ca.sqrt(ca.if_else(small, 1.0, theta2))
-    closed = 1.0 / (theta * theta) - ca.cos(0.5 * theta) / (2.0 * theta * ca.sin(0.5 * theta))
-    return ca.if_else(small, _series(theta2, (1.0 / 12.0, 1.0 / 720.0, 1.0 / 30240.0)), closed)
-
-
-def _half_cot(theta: Any) -> Any:
-    """``(θ/2) cot(θ/2)``, the diagonal of SE(2)'s ``V(θ)⁻¹``."""
-    theta2 = theta * theta
-    small = theta2 < 1e-4
-    safe = ca.if_else(small, 1.0, theta)
-    closed = 0.5 * safe * ca.cos(0.5 * safe) / ca.sin(0.5 * safe)
-    return ca.if_else(small, _series(theta2, (1.0, -1.0 / 12.0, -1.0 / 720.0, -1.0 / 30240.0)), closed)
-
-
-def _rho(loss: RobustLoss, s: Any) -> Any:
-    """``ρ(s)`` of :mod:`manopt_lie.optim.losses`, symbolically (safe ``√`` in Huber's linear part)."""
-    if isinstance(loss, Trivial):
-        return s
-    c2 = loss.c**2  # type: ignore[attr-defined]
-    if isinstance(loss, Huber):
-        return ca.if_else(s <= c2, s, 2.0 * loss.c * ca.sqrt(ca.fmax(s, c2)) - c2)
-    if isinstance(loss, Cauchy):
-        return c2 * ca.log1p(s / c2)
-    if isinstance(loss, GemanMcClure):
-        return c2 * s / (c2 + s)
-    if isinstance(loss, TruncatedL2):
-        return ca.fmin(s, c2)
-    if isinstance(loss, L1):
-        return 2.0 * c2 * (ca.sqrt(1.0 + s / c2) - 1.0)
-    raise ValueError(f"reference_solve: no symbolic form for the robust loss {loss!r}")
-
-
-def _cross(a: Any, b: Any) -> Any:
-    return ca.vertcat(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _qmul(p: Any, q: Any) -> Any:
-    """Hamilton product of ``(x, y, z, w)`` quaternions."""
-    pv, pw, qv, qw = p[:3], p[3], q[:3], q[3]
-    return ca.vertcat(pw * qv + qw * pv + _cross(pv, qv), pw * qw - ca.dot(pv, qv))
-
-
-def _cmul(a: Any, b: Any) -> Any:
-    """Product of complex numbers stored ``(re, im)``."""
-    return ca.vertcat(a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0])
-
-
-# ---- rotation parametrizations --------------------------------------------------------------
-
-
-class _Rotations:
-    """How a rotation is stored in the NLP: ``size`` numbers per rotation, its matrix,
-    its constraints, the rotation vector (or angle) of ``R̃ᵀR_iᵀR_j``, and conversions."""
-
-    size: int
-    n_constraints: int
-
-    def __init__(self, d: int) -> None:
-        self.d = d
-
-    def matrix(self, r: Any) -> Any:  # SX d×d
-        raise NotImplementedError
-
-    def constraints(self, r: Any) -> Any:
-        raise NotImplementedError
-
-    def residual(self, ri: Any, rj: Any, meas: Any, meas_matrix: Any) -> tuple[Any, Any]:
-        """``(θ², θ)`` of ``Log(R̃ᵀR_iᵀR_j)``: ``θ`` the angle (2-D) or rotation vector (3-D)."""
-        raise NotImplementedError
-
-    def pack(self, r: FloatArray) -> FloatArray:  # (n, d, d) -> (n, size)
-        raise NotImplementedError
-
-    def unpack(self, v: FloatArray) -> tuple[FloatArray, int]:  # (n, size) -> rotations (n, d, d), reflections
-        raise NotImplementedError
-
-
-class _MatrixRotations(_Rotations):
-    def __init__(self, d: int) -> None:
-        super().__init__(d)
-        self.size, self.n_constraints = d * d, d * (d + 1) // 2
-        self._upper = [(a, b) for a in range(d) for b in range(a, d)]
-
-    def matrix(self, r: Any) -> Any:
-        return ca.reshape(r, self.d, self.d)  # column-major, as packed
-
-    def constraints(self, r: Any) -> Any:
-        m = self.matrix(r)
-        gram = m.T @ m - ca.DM.eye(self.d)
-        return ca.vertcat(*[gram[a, b] for a, b in self._upper])
-
-    def residual(self, ri: Any, rj: Any, meas: Any, meas_matrix: Any) -> tuple[Any, Any]:
-        e = meas_matrix.T @ self.matrix(ri).T @ self.matrix(rj)
-        if self.d == 2:
-            theta = ca.atan2(e[1, 0] - e[0, 1], e[0, 0] + e[1, 1])
-            return theta * theta, theta
-        a = 0.5 * ca.vertcat(e[2, 1] - e[1, 2], e[0, 2] - e[2, 0], e[1, 0] - e[0, 1])
-        s2, c = ca.dot(a, a), 0.5 * (ca.trace(e) - 1.0)
-        g = _atan2_ratio(s2, c)
-        return s2 * g * g, g * a
-
-    def pack(self, r: FloatArray) -> FloatArray:
-        return np.swapaxes(r, 1, 2).reshape(len(r), -1)
-
-    def unpack(self, v: FloatArray) -> tuple[FloatArray, int]:
-        m = np.swapaxes(v.reshape(len(v), self.d, self.d), 1, 2)
-        return project_rotation(m), int(np.sum(np.linalg.det(m) <= 0))
-
-
-class _UnitRotations(_Rotations):
-    """Unit quaternions ``(x, y, z, w)`` (3-D) or unit complex numbers ``(cos θ, sin θ)`` (2-D)."""
-
-    def __init__(self, d: int) -> None:
-        super().__init__(d)
-        self.size, self.n_constraints = (2 if d == 2 else 4), 1
-
-    def matrix(self, r: Any) -> Any:
-        if self.d == 2:
-            return ca.vertcat(ca.horzcat(r[0], -r[1]), ca.horzcat(r[1], r[0]))
-        v, w = r[:3], r[3]
-        return (w * w - ca.dot(v, v)) * ca.DM.eye(3) + 2.0 * (v @ v.T) + 2.0 * w * ca.skew(v)
-
-    def constraints(self, r: Any) -> Any:
-        return ca.dot(r, r) - 1.0
-
-    def residual(self, ri: Any, rj: Any, meas: Any, meas_matrix: Any) -> tuple[Any, Any]:
-        conj = ca.DM([1, -1]) if self.d == 2 else ca.DM([-1, -1, -1, 1])
-        if self.d == 2:
-            e = _cmul(_cmul(meas * conj, ri * conj), rj)
-            theta = ca.atan2(e[1], e[0])
-            return theta * theta, theta
-        e = _qmul(_qmul(meas * conj, ri * conj), rj)
-        v, w = e[:3], e[3]
-        s2, c = ca.dot(v, v), ca.fabs(w)
-        g = 2.0 * _atan2_ratio(s2, c)
-        return s2 * g * g, ca.sign(w) * g * v
-
-    def pack(self, r: FloatArray) -> FloatArray:
-        if self.d == 2:
-            return np.stack([r[:, 0, 0], r[:, 1, 0]], axis=1)
-        return SO3.from_matrix(r).as_quaternion()
-
-    def unpack(self, v: FloatArray) -> tuple[FloatArray, int]:
-        if self.d == 2:
-            return SO2.from_angle(np.arctan2(v[:, 1], v[:, 0])).as_matrix(), 0
-        return SO3.from_quaternion(v, normalize=True).as_matrix(), 0
-
-
-def _resolve(parametrization: str, spec: PoseGraph | RotationAveraging, loss: RobustLoss) -> str:
-    """``"auto"`` → ``"matrix"`` for robust pose graphs, else ``"quaternion"`` (module doc)."""
+def _resolve(parametrization: str, spec: MeasurementGraph, loss: RobustLoss) -> str:
+    """``"auto"`` → ``"matrix"`` for robust costs with translations, else ``"quaternion"`` (module doc)."""
     if parametrization not in PARAMETRIZATIONS:
         raise ValueError(f"reference_solve: parametrization must be one of {PARAMETRIZATIONS}, got {parametrization!r}")
     if parametrization == "auto":
-        return "matrix" if isinstance(spec, PoseGraph) and not isinstance(loss, Trivial) else "quaternion"
+        return "matrix" if spec.has_translations and not isinstance(loss, Trivial) else "quaternion"
     return parametrization
-
-
-def _rotations(parametrization: str, d: int) -> _Rotations:
-    if parametrization == "matrix":
-        return _MatrixRotations(d)
-    if parametrization == "quaternion":
-        return _UnitRotations(d)
-    raise ValueError(f"unknown parametrization {parametrization!r}")
 
 
 # ---- the symbolic NLP -----------------------------------------------------------------------
@@ -362,8 +183,8 @@ class ReferenceNLP:
 
 
 def _check(spec: Any, x0: Any, cost: str) -> None:
-    if not isinstance(spec, (PoseGraph, RotationAveraging)):
-        raise TypeError(f"reference_solve: spec must be a PoseGraph or RotationAveraging, got {type(spec).__name__}")
+    if not isinstance(spec, MeasurementGraph):
+        raise TypeError(f"reference_solve: spec must be a MeasurementGraph, got {type(spec).__name__}")
     if cost not in COSTS:
         raise ValueError(f"reference_solve: cost must be one of {COSTS}, got {cost!r}")
     if not isinstance(x0, spec.group):
@@ -374,57 +195,49 @@ def _check(spec: Any, x0: Any, cost: str) -> None:
         raise ShapeError(f"reference_solve: x0 must have batch shape ({spec.n},), got {x0.batch_shape}")
 
 
-def _edge_data(spec: PoseGraph | RotationAveraging, cost: str, rot: _Rotations, loss: RobustLoss) -> FloatArray:
+def _edge_data(spec: MeasurementGraph, cost: str, rot: _Rotations, loss: RobustLoss) -> FloatArray:
     """Per-edge numbers ``(m, k)``: ``R̃`` (column-major), the rotation's own parameters, then
-    ``t̃`` and the weights (``κ, τ`` for chordal, ``vec Ω`` or ``κ`` for geodesic)."""
+    ``t̃`` (with translations) and the weights (``κ`` and ``τ`` for chordal, ``vec Ω`` for geodesic)."""
     d, z = spec.d, spec.measurements.as_matrix()
     parts = [np.swapaxes(z[:, :d, :d], 1, 2).reshape(spec.m, -1), rot.pack(z[:, :d, :d])]
-    if isinstance(spec, PoseGraph):
+    if spec.has_translations:
         parts.append(z[:, :d, d])
-        if cost == "chordal":
-            kappa, tau = spec.se_sync_weights
-            bad = np.flatnonzero(~((kappa > 0) & (tau > 0)))
-            if bad.size:
-                raise costs.IndefiniteInformationError(
-                    f"{spec.name}: the chordal cost needs κ, τ > 0; not so on edges {spec.edge_names(bad[:10])}"
-                )
-            parts += [kappa[:, None], tau[:, None]]
-        else:
-            bad = costs.indefinite_edges(spec.information)
-            if bad.size and not isinstance(loss, Trivial):
-                raise costs.IndefiniteInformationError(
-                    f"{spec.name}: a robust loss needs positive definite information matrices; "
-                    f"not so on edges {spec.edge_names(bad[:10])}"
-                )
-            parts.append(spec.information.reshape(spec.m, -1))
+    if cost == "chordal":
+        spec.chordal_weights()  # raises, naming the edges, unless κ, τ > 0
+        kappa, tau = spec.chordal_parameters()
+        parts += [kappa[:, None]] + ([] if tau is None else [tau[:, None]])
     else:
-        parts.append(spec.kappa[:, None])
+        bad = costs.indefinite_edges(spec.information)
+        if bad.size and not isinstance(loss, Trivial):
+            raise costs.IndefiniteInformationError(
+                f"{spec.name}: a robust loss needs positive definite information matrices; "
+                f"not so on edges {spec.edge_names(bad[:10])}"
+            )
+        parts.append(spec.information.reshape(spec.m, -1))
     return np.concatenate(parts, axis=1)
 
 
-def _edge_function(spec: PoseGraph | RotationAveraging, cost: str, rot: _Rotations, loss: RobustLoss) -> ca.Function:
+def _edge_function(spec: MeasurementGraph, cost: str, rot: _Rotations, loss: RobustLoss) -> ca.Function:
     """``(x_i, x_j, p_e) ↦ ½ ρ(s_e)`` for one edge (``ρ(s) = s`` without a robust loss)."""
-    d, poses = spec.d, isinstance(spec, PoseGraph)
-    k = rot.size + (d if poses else 0)
+    d, translations, k_tan = spec.d, spec.has_translations, spec.group.dim
+    k = rot.size + (d if translations else 0)
+    weights = (2 if translations else 1) if cost == "chordal" else k_tan * k_tan
+    p = ca.SX.sym("p", d * d + rot.size + (d if translations else 0) + weights)
     xi, xj = ca.SX.sym("xi", k), ca.SX.sym("xj", k)
-    n_par = d * d + rot.size + ((d + (2 if cost == "chordal" else spec.group.dim**2)) if poses else 1)
-    p = ca.SX.sym("p", n_par)
     z_rot = ca.reshape(p[: d * d], d, d)
     z_par = p[d * d : d * d + rot.size]
     rest = p[d * d + rot.size :]
     ri, rj = xi[: rot.size], xj[: rot.size]
     if cost == "chordal":
         mi, mj = rot.matrix(ri), rot.matrix(rj)
-        diff = mj - mi @ z_rot
-        if poses:
-            z_t, kappa, tau = rest[:d], rest[d], rest[d + 1]
-            dt = xj[rot.size :] - xi[rot.size :] - mi @ z_t
-            s = 2.0 * (kappa * ca.sumsqr(diff) + tau * ca.sumsqr(dt))
-        else:
-            s = 2.0 * rest[0] * ca.sumsqr(diff)
+        s = 2.0 * rest[-weights] * ca.sumsqr(mj - mi @ z_rot)  # κ‖R_j − R_i R̃‖²
+        if translations:
+            z_t, tau = rest[:d], rest[d + 1]
+            s += 2.0 * tau * ca.sumsqr(xj[rot.size :] - xi[rot.size :] - mi @ z_t)
     else:
         theta2, theta = rot.residual(ri, rj, z_par, z_rot)
-        if poses:
+        r = theta
+        if translations:
             # t_e = R̃ᵀ (R_iᵀ (t_j − t_i) − t̃), ρ = V(θ)⁻¹ t_e (SE(2)) or Jl(θ)⁻¹ t_e (SE(3)).
             t = z_rot.T @ (rot.matrix(ri).T @ (xj[rot.size :] - xi[rot.size :]) - rest[:d])
             if d == 2:
@@ -434,10 +247,8 @@ def _edge_function(spec: PoseGraph | RotationAveraging, cost: str, rot: _Rotatio
                 wt = _cross(theta, t)
                 rho = t - 0.5 * wt + _jl_inv_coefficient(theta2) * _cross(theta, wt)
             r = ca.vertcat(rho, theta)
-            omega = ca.reshape(rest[d:], spec.group.dim, spec.group.dim)
-            s = r.T @ omega @ r
-        else:
-            s = rest[0] * theta2
+        omega = ca.reshape(rest[-weights:], k_tan, k_tan)
+        s = r.T @ omega @ r
     return ca.Function("edge", [xi, xj, p], [0.5 * _rho(loss, s)])
 
 
@@ -460,7 +271,7 @@ def _triplets(matrix: Any) -> tuple[IntArray, IntArray]:
 
 
 def build_nlp(
-    spec: PoseGraph | RotationAveraging,
+    spec: MeasurementGraph,
     x0: LieGroup,
     *,
     cost: str = "chordal",
@@ -478,9 +289,8 @@ def build_nlp(
     _check(spec, x0, cost)
     loss = parse_loss(robust)
     parametrization = _resolve(parametrization, spec, loss)  # type: ignore[assignment]
-    rot = _rotations(parametrization, spec.d)
-    poses = isinstance(spec, PoseGraph)
-    anchor = spec.anchor if isinstance(spec, PoseGraph) else 0
+    rot = rotations(parametrization, spec.d)
+    poses, anchor = spec.has_translations, spec.anchor
     d, n, m = spec.d, spec.n, spec.m
     k, c = rot.size + (d if poses else 0), rot.n_constraints
     nv, ng = k * (n - 1), c * (n - 1)
@@ -591,7 +401,7 @@ def build_nlp(
 
 
 def reference_solve(
-    spec: PoseGraph | RotationAveraging,
+    spec: MeasurementGraph,
     x0: LieGroup,
     *,
     cost: str = "chordal",
@@ -613,7 +423,8 @@ def reference_solve(
 
     Parameters
     ----------
-    spec : PoseGraph or RotationAveraging
+    spec : MeasurementGraph
+        A pose graph or a rotation-averaging instance.
     x0 : group element, batch ``(n,)``
         The starting point (e.g. ``spec.chordal_initialization()``); also fixes the gauge.
     cost : {"chordal", "geodesic"}
@@ -638,7 +449,7 @@ def reference_solve(
         (:class:`~manopt_lie.errors.ShapeError` for a wrong batch shape);
         :class:`~problems.costs.IndefiniteInformationError` for weights the cost cannot use.
     TypeError
-        ``spec`` is neither a ``PoseGraph`` nor a ``RotationAveraging``.
+        ``spec`` is not a :class:`~manopt_lie.problems.graph.MeasurementGraph`.
     """
     t0 = time.perf_counter()
     problem = build_nlp(spec, x0, cost=cost, robust=robust, parametrization=parametrization)

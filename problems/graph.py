@@ -1,0 +1,311 @@
+"""The base of measurement graphs: variables on one Lie group linked by relative measurements.
+
+A graph has ``n`` vertices, each a variable ``X_i`` of a group ``G`` (poses in SE(d),
+rotations in SO(d)), and ``m`` edges ``e = (i, j)``, each carrying a measurement
+``Z_e ≈ X_i⁻¹ X_j`` and a weight. :class:`MeasurementGraph` owns everything the
+kinds share, written once:
+
+- validation of the edges, measurements, ids, estimates and gauge (:meth:`_validate`);
+- the costs of CONVENTIONS §8 by name (:meth:`cost`, :meth:`problem`): **geodesic**
+  ``½ Σ r_eᵀ Ω_e r_e`` with ``r_e = Log(Z_e⁻¹ X_i⁻¹ X_j)`` and **chordal**
+  ``Σ ‖(X_j − X_i Z_e) W_e‖_F²`` on the top ``d`` rows of the matrices;
+- initializations by name (:meth:`initialize`);
+- what a command line or a benchmark needs to know without asking for the kind:
+  :attr:`kind`, :attr:`noun`, :attr:`dimension`, :meth:`positions` (what to plot)
+  and :meth:`to_g2o` (what to write back).
+
+A kind supplies its weights: :attr:`information` (``Ω_e``, ``(m, k, k)``, tangent order
+``(ρ, θ)``) and :meth:`chordal_parameters` (SE-Sync's ``κ_e``, and ``τ_e`` when the group
+has translations).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from manopt_lie.errors import ShapeError
+from manopt_lie.lie._matrix import assemble
+from manopt_lie.lie.base import LieGroup
+from manopt_lie.manifolds import LieGroupManifold, Power
+from manopt_lie.optim import LeastSquaresProblem
+from manopt_lie.optim.losses import RobustLoss
+
+from . import costs, initialization
+
+if TYPE_CHECKING:
+    from .pose_graph import PoseGraph
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class MeasurementGraph(ABC):
+    """Relative measurements ``Z_e ≈ X_i⁻¹ X_j`` between ``n`` variables of one group.
+
+    Subclasses are frozen dataclasses with the fields ``group``, ``edges`` (vertex
+    *indices* ``(m, 2)``), ``measurements`` (batch ``(m,)``), ``ids`` (the source's vertex
+    ids, ``(n,)``), ``fixed`` (vertex indices held fixed by the source), ``name``, and
+    :attr:`estimates` (vertex estimates from the source, or ``None``).
+    """
+
+    kind: ClassVar[str]
+    """The problem kind's name, as the command line and the catalogue spell it."""
+    noun: ClassVar[str]
+    """What the vertices are, for messages (``"poses"``)."""
+    costs: ClassVar[tuple[str, ...]]
+    """The costs this kind offers; the first is the default."""
+    initializations: ClassVar[tuple[str, ...]] = ("chordal", "odometry", "file")
+    """The names :meth:`initialize` takes."""
+
+    group: type[LieGroup]
+    edges: IntArray
+    measurements: LieGroup
+    ids: IntArray
+    fixed: IntArray
+    name: str
+    information: FloatArray
+    """``Ω_e``, ``(m, k, k)`` with ``k = group.dim``, in tangent order ``(ρ, θ)`` (a field or a property)."""
+
+    # ---- what a kind supplies ---------------------------------------------------------
+
+    @abstractmethod
+    def chordal_parameters(self) -> tuple[FloatArray, FloatArray | None]:
+        """SE-Sync's isotropic weights: ``κ_e`` ``(m,)`` and ``τ_e`` ``(m,)`` (``None`` without translations)."""
+
+    @property
+    @abstractmethod
+    def estimates(self) -> Any:
+        """Vertex estimates from the source (batch ``(n,)``), or ``None``."""
+
+    @abstractmethod
+    def to_g2o(self, x: LieGroup) -> tuple[PoseGraph, LieGroup]:
+        """The pose graph and vertex poses that represent the solution ``x`` in a g2o file."""
+
+    # ---- validation -----------------------------------------------------------------
+
+    def _validate(self, groups: tuple[type[LieGroup], ...], n: int | None, *, allow_empty: bool) -> int:
+        """Check and normalize the shared fields (``ids`` may be ``None``: then ``0..n-1``); return ``n``."""
+        name = self.name
+        if self.group not in groups:
+            names = " or ".join(g.__name__ for g in groups)
+            raise TypeError(f"{type(self).__name__}: group must be {names}, got {self.group!r}")
+        edges = np.asarray(self.edges)
+        if edges.ndim != 2 or edges.shape[1] != 2 or not np.issubdtype(edges.dtype, np.integer):
+            raise ShapeError(f"{name}: edges must be an integer array (m, 2), got {edges.shape} {edges.dtype}")
+        if not (allow_empty or len(edges)):
+            raise ShapeError(f"{name}: edges must be a non-empty integer array (m, 2), got {edges.shape}")
+        m = len(edges)
+        if not isinstance(self.measurements, self.group) or self.measurements.batch_shape != (m,):
+            raise ShapeError(f"{name}: measurements must be {self.group.__name__} with batch shape ({m},)")
+        if self.ids is None:
+            if n is None:
+                n = int(edges.max()) + 1 if m else 0
+                if self.estimates is not None:
+                    n = max(n, self.estimates.batch_shape[0])
+            ids = np.arange(n, dtype=np.int64)
+        else:
+            ids = np.asarray(self.ids, dtype=np.int64)
+            if ids.ndim != 1 or len(np.unique(ids)) != len(ids):
+                raise ValueError(f"{name}: ids must be a 1-D array of distinct integers")
+        n = len(ids)
+        if m and (edges.min() < 0 or edges.max() >= n):
+            raise ValueError(f"{name}: edge indices must lie in 0..{n - 1}")
+        loops = np.flatnonzero(edges[:, 0] == edges[:, 1])
+        if loops.size:
+            raise ValueError(f"{name}: self-loop edges {loops[:10].tolist()}")
+        estimates = self.estimates
+        if estimates is not None and (not isinstance(estimates, self.group) or estimates.batch_shape != (n,)):
+            raise ShapeError(f"{name}: estimates must be {self.group.__name__} with batch shape ({n},)")
+        fixed = np.asarray(self.fixed, dtype=np.int64).reshape(-1)
+        if fixed.size and (fixed.min() < 0 or fixed.max() >= n):
+            raise ValueError(f"{name}: fixed vertex indices must lie in 0..{n - 1}")
+        object.__setattr__(self, "edges", edges.astype(np.int64))
+        object.__setattr__(self, "ids", ids)
+        object.__setattr__(self, "fixed", fixed)
+        return n
+
+    # ---- sizes and names --------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Number of vertices."""
+        return len(self.ids)
+
+    @property
+    def m(self) -> int:
+        """Number of edges."""
+        return len(self.edges)
+
+    @property
+    def d(self) -> int:
+        """The dimension of the space the group acts on (2 or 3)."""
+        return int(self.group.point_dim)  # type: ignore[attr-defined]
+
+    @property
+    def has_translations(self) -> bool:
+        """Whether the group carries translations (SE(d)) or only rotations (SO(d))."""
+        return bool(self.group.dim > self.d * (self.d - 1) // 2)
+
+    @property
+    def dimension(self) -> int:
+        """The tangent dimension of the variables, ``n · dim G`` (the gauge included)."""
+        return self.n * self.group.dim
+
+    @property
+    def anchor(self) -> int:
+        """The vertex fixing the gauge: the first ``fixed`` one, else vertex 0."""
+        return int(self.fixed[0]) if self.fixed.size else 0
+
+    @property
+    def manifold(self) -> Power:
+        """``Power(G, n)`` with the group's retraction ``X ⊕ δ``."""
+        return Power(LieGroupManifold(self.group), self.n)
+
+    def edge_names(self, edges: Any) -> list[str]:
+        """``"i→j"`` in the source's vertex ids, for messages."""
+        ij = self.ids[self.edges[np.asarray(edges, dtype=np.int64)]]
+        return [f"{a}→{b}" for a, b in ij]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r}, {self.group.__name__}, n={self.n}, m={self.m})"
+
+    # ---- costs and problems -----------------------------------------------------------
+
+    def _cost_name(self, cost: str | None) -> str:
+        if cost is None:
+            return self.costs[0]
+        if cost not in self.costs:
+            raise ValueError(f"cost must be one of {self.costs}, got {cost!r}")
+        return cost
+
+    def chordal_weights(self) -> FloatArray:
+        """The diagonal of ``W_e`` per edge, ``(m, c)``: ``√κ`` on the ``d`` rotation columns
+        and ``√τ`` on the translation column (if any).
+
+        Raises
+        ------
+        IndefiniteInformationError
+            Naming the edges where ``κ`` or ``τ`` is not positive.
+        """
+        kappa, tau = self.chordal_parameters()
+        positive = kappa > 0 if tau is None else (kappa > 0) & (tau > 0)
+        if not positive.all():
+            bad = np.flatnonzero(~positive)
+            raise costs.IndefiniteInformationError(
+                f"{self.name}: the chordal cost needs κ, τ > 0; not so on edges {self.edge_names(bad[:10])}"
+            )
+        columns = [np.repeat(np.sqrt(kappa)[:, None], self.d, axis=1)]
+        if tau is not None:
+            columns.append(np.sqrt(tau)[:, None])
+        return np.concatenate(columns, axis=1)
+
+    def cost(self, x: LieGroup, cost: str | None = None) -> float:
+        """The CONVENTIONS §8 value at ``x``: geodesic ``½ Σ rᵀΩr`` or chordal
+        ``Σ ‖(X_j − X_i Z) W‖_F²`` (default: the first of :attr:`costs`)."""
+        cost = self._cost_name(cost)
+        self.manifold.check_point(x)
+        if cost == "geodesic":
+            return costs.geodesic_cost(x, self.edges, self.measurements, self.information)
+        return costs.chordal_cost(x, self.edges, self.measurements, self.chordal_weights())
+
+    def problem(
+        self,
+        cost: str | None = None,
+        *,
+        robust: RobustLoss | str | None = None,
+        repair_information: bool = False,
+    ) -> LeastSquaresProblem:
+        """The least-squares problem on ``Power(G, n)`` with the :attr:`anchor` fixed.
+
+        Parameters
+        ----------
+        cost : str, optional
+            One of :attr:`costs` (default the first); the objective is exactly :meth:`cost`.
+            The chordal problem without a robust loss carries its exact Riemannian
+            Hessian (:class:`~manopt_lie.problems.costs.ChordalHessian`), so the trust
+            region runs on the true model; every problem also offers Gauss-Newton.
+        robust : RobustLoss or str, optional
+            A robust loss on each edge's squared whitened residual, e.g. ``"huber:1.0"``.
+        repair_information : bool
+            The geodesic cost needs positive definite ``Ω``; by default edges that are
+            not raise :class:`~manopt_lie.problems.costs.IndefiniteInformationError`
+            naming them; ``True`` replaces them by the nearest positive definite matrix.
+        """
+        cost = self._cost_name(cost)
+        fixed = np.array([self.anchor])
+        if cost == "geodesic":
+            sqrt_info = costs.information_sqrt(self.information, _EdgeNames(self), repair=repair_information)
+            factor = costs.geodesic_factor(self.edges, self.measurements, sqrt_info, robust)
+            return LeastSquaresProblem(self.manifold, [factor], fixed=fixed)
+        weights = self.chordal_weights()
+        factor = costs.chordal_factor(self.edges, self.measurements, weights, robust)
+        hessian = None
+        if robust is None:
+            hessian = costs.ChordalHessian(self.manifold, self.edges, self.measurements, weights, fixed)
+        return LeastSquaresProblem(self.manifold, [factor], fixed=fixed, hessian=hessian)
+
+    # ---- initializations -----------------------------------------------------------
+
+    def initialize(self, method: str = "chordal") -> LieGroup:
+        """An initial estimate by name: ``"chordal"`` (:meth:`chordal_initialization`),
+        ``"odometry"`` (:meth:`odometry_initialization`) or ``"file"`` (the source's
+        :attr:`estimates`)."""
+        if method == "chordal":
+            return self.chordal_initialization()
+        if method == "odometry":
+            return self.odometry_initialization()
+        if method == "file":
+            if self.estimates is None:
+                raise ValueError(f"{self.name} has no vertex estimates (no VERTEX lines): initialize otherwise")
+            return self.estimates
+        raise ValueError(f"initialization must be one of {self.initializations}, got {method!r}")
+
+    def _in_source_frame(self, x: LieGroup) -> LieGroup:
+        """Move the anchor to its estimate in the source (if the source had estimates)."""
+        if self.estimates is None:
+            return x
+        return self.estimates[self.anchor] @ x[self.anchor].inverse() @ x  # type: ignore[no-any-return]
+
+    def odometry_initialization(self) -> LieGroup:
+        """Measurements composed along a spanning tree from the anchor that prefers
+        odometry edges ``(i, i+1)`` (:func:`~manopt_lie.problems.initialization.spanning_tree`)."""
+        initialization.check_connected(self.n, self.edges, self.ids, self.anchor)
+        x = initialization.spanning_tree(self.group, self.n, self.edges, self.measurements, self.anchor)
+        return self._in_source_frame(x)
+
+    def chordal_initialization(self) -> LieGroup:
+        """Martinec–Pajdla / Carlone et al. (2015): rotations from the linear least squares
+        relaxation of ``Σ κ‖R_j − R_i R̃‖²`` projected onto SO(d), then (with translations)
+        translations from the linear least squares ``Σ τ‖t_j − t_i − R_i t̃‖²``. The
+        magnitudes of SE-Sync's ``κ, τ`` are used, so that graphs with indefinite
+        information matrices still initialize."""
+        initialization.check_connected(self.n, self.edges, self.ids, self.anchor)
+        kappa, tau = self.chordal_parameters()
+        z, d = self.measurements.as_matrix(), self.d
+        r = initialization.chordal_rotations(self.n, self.edges, z[:, :d, :d], np.abs(kappa), self.anchor)
+        if tau is None:
+            return self._in_source_frame(self.group.from_matrix(r))
+        t = initialization.chordal_translations(self.n, self.edges, r, z[:, :d, d], np.abs(tau), self.anchor)
+        return self._in_source_frame(self.group.from_matrix(assemble(r, t)))
+
+    # ---- what commands show ------------------------------------------------------------
+
+    def positions(self, x: LieGroup) -> FloatArray | None:
+        """Vertex positions ``(n, d)`` to draw a trajectory; ``None`` for groups without translations."""
+        if not self.has_translations:
+            return None
+        return np.asarray(x.as_matrix()[:, : self.d, self.d])
+
+
+class _EdgeNames:
+    """Lazy ``names[e]`` → ``"i→j"`` in source ids, for error messages."""
+
+    def __init__(self, graph: MeasurementGraph) -> None:
+        self.graph = graph
+
+    def __getitem__(self, e: int) -> str:
+        return self.graph.edge_names([e])[0]
