@@ -3,17 +3,31 @@
 :class:`BlockStructure` turns arrays of edges (one array per factor type) into
 the fixed sparsity of ``J``, ``H = JᵀWJ`` and ``g = JᵀWr``, computed once;
 :class:`CholeskySolver` solves ``H δ = −g`` reusing its symbolic analysis;
-:func:`pcg_solve` is the iterative fallback for very large systems::
+:class:`PCGSolver` (over :func:`pcg_solve`) is the iterative alternative for
+systems whose factor fills in. Both are :class:`LinearSolver`\\ s, the protocol
+the least-squares optimizers take (``linear_solver="cholesky"`` or ``"pcg"``)::
 
     structure = BlockStructure(dims, [(odometry_ids, 6), (loop_ids, 6)])
-    solver = CholeskySolver()
+    solver = get_linear_solver("cholesky").bind(structure)   # one per run
     H, g = structure.normal_equations(blocks, residuals)
     delta = -solver(structure.add_diagonal(H, lam * H.diagonal()), g)
 """
 
 from .cholesky import CholeskySolver
 from .errors import SingularSystemError
-from .pcg import PCGResult, block_jacobi, pcg_solve
+from .linear_solver import LINEAR_SOLVERS, LinearSolver, get_linear_solver
+from .pcg import PCGResult, PCGSolver, block_jacobi, pcg_solve
 from .structure import BlockStructure
 
-__all__ = ["BlockStructure", "CholeskySolver", "SingularSystemError", "PCGResult", "block_jacobi", "pcg_solve"]
+__all__ = [
+    "BlockStructure",
+    "CholeskySolver",
+    "PCGSolver",
+    "LinearSolver",
+    "LINEAR_SOLVERS",
+    "get_linear_solver",
+    "SingularSystemError",
+    "PCGResult",
+    "block_jacobi",
+    "pcg_solve",
+]

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -13,9 +15,14 @@ from ._backends import _PACKAGES, BACKENDS, Backend, available_backends
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
+if TYPE_CHECKING:
+    from .structure import BlockStructure
+
 __all__ = ["CholeskySolver"]
 
 FloatArray = NDArray[np.float64]
+
+_NO_STATS: Mapping[str, float] = MappingProxyType({})
 
 
 def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
@@ -40,7 +47,9 @@ class CholeskySolver:
     values and :meth:`solve` applies it. Calling the solver, ``solver(H, b)``,
     analyses on first use or when the pattern changes and factorizes always,
     which suits a Gauss-Newton loop (see :meth:`BlockStructure.add_diagonal`
-    for damping without changing the pattern).
+    for damping without changing the pattern). It is a
+    :class:`~manopt_lie.linalg.LinearSolver` (``linear_solver="cholesky"``):
+    :meth:`bind` gives each run its own solver and analysis.
 
     Parameters
     ----------
@@ -102,6 +111,19 @@ class CholeskySolver:
     def available_backends() -> tuple[str, ...]:
         """Names of the backends usable here, fastest first."""
         return available_backends()
+
+    # -- the LinearSolver protocol ---------------------------------------------
+
+    def bind(self, structure: BlockStructure) -> CholeskySolver:
+        """A fresh solver with these settings and no analysis, for one run
+        (:class:`~manopt_lie.linalg.LinearSolver`); the structure's pattern is
+        analysed at the first call."""
+        return CholeskySolver(self.backend, rtol=self.rtol)
+
+    @property
+    def stats(self) -> Mapping[str, float]:
+        """Nothing to report: a direct solve is exact or raises."""
+        return _NO_STATS
 
     # -- phases --------------------------------------------------------------
 

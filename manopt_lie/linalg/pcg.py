@@ -1,8 +1,17 @@
-"""Preconditioned conjugate gradients with a block-Jacobi preconditioner, for very large systems."""
+"""Preconditioned conjugate gradients with a block-Jacobi preconditioner, for very large systems.
+
+:func:`pcg_solve` is the algorithm; :class:`PCGSolver` wraps it as a
+:class:`~manopt_lie.linalg.LinearSolver` for Gauss-Newton and
+Levenberg-Marquardt (``linear_solver="pcg"``), taking the block sizes from the
+problem's :class:`~manopt_lie.linalg.BlockStructure` when bound to a run.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -12,7 +21,12 @@ from ..errors import ShapeError
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
-__all__ = ["PCGResult", "block_jacobi", "pcg_solve"]
+if TYPE_CHECKING:
+    from .structure import BlockStructure
+
+__all__ = ["PCGResult", "PCGSolver", "block_jacobi", "pcg_solve"]
+
+PRECONDITIONERS = ("block-jacobi", "jacobi", None)
 
 FloatArray = NDArray[np.float64]
 
@@ -182,3 +196,79 @@ def pcg_solve(
         rz, rz_old = dot(r, z), rz
         p = z + (rz / rz_old) * p
     return PCGResult(x, maxiter, residual, False)
+
+
+class PCGSolver:
+    """:func:`pcg_solve` as a :class:`~manopt_lie.linalg.LinearSolver`: ``x ≈ H⁻¹b`` with
+    ``‖b − Hx‖ ≤ tol·‖b‖``, preconditioned by the inverse diagonal blocks of ``H``.
+
+    An inexact Newton step: Gauss-Newton and Levenberg-Marquardt converge with
+    truncated solves (each CG iterate from ``x₀ = 0`` decreases the quadratic
+    model, so ``−gᵀH⁻¹g`` is approximated by a descent direction), at a linear
+    rate of about ``tol`` instead of quadratically. No factorization, so the
+    memory is that of ``H``: for systems whose Cholesky factor fills in.
+
+    Parameters
+    ----------
+    tol : float
+        Relative residual at which CG stops, in ``(0, 1)``.
+    maxiter : int, optional
+        Iteration cap per solve (default: the system's size ``n``). A solve
+        stopped by it returns its last iterate, reported in :attr:`stats`.
+    preconditioner : {"block-jacobi", "jacobi", None}
+        See :func:`pcg_solve`.
+    dims : array_like of int, optional
+        The variables' block sizes; :meth:`bind` sets them from the structure
+        (``"block-jacobi"`` needs them).
+
+    Attributes
+    ----------
+    last : PCGResult or None
+        The outcome of the last call.
+    """
+
+    def __init__(
+        self,
+        *,
+        tol: float = 1e-6,
+        maxiter: int | None = None,
+        preconditioner: str | None = "block-jacobi",
+        dims: ArrayLike | None = None,
+    ) -> None:
+        if not 0 < tol < 1:
+            raise ValueError(f"PCGSolver: tol must be in (0, 1), got {tol!r}")
+        if maxiter is not None and not (int(maxiter) == maxiter and maxiter >= 1):
+            raise ValueError(f"PCGSolver: maxiter must be a positive integer or None, got {maxiter!r}")
+        if preconditioner not in PRECONDITIONERS:
+            raise ValueError(
+                f"PCGSolver: unknown preconditioner {preconditioner!r}; use 'block-jacobi', 'jacobi' or None"
+            )
+        self.tol, self.preconditioner = float(tol), preconditioner
+        self.maxiter = None if maxiter is None else int(maxiter)
+        self.dims = None if dims is None else np.asarray(dims, dtype=np.intp)
+        self.last: PCGResult | None = None
+
+    def __repr__(self) -> str:
+        return f"PCGSolver(tol={self.tol!r}, maxiter={self.maxiter!r}, preconditioner={self.preconditioner!r})"
+
+    def bind(self, structure: BlockStructure) -> PCGSolver:
+        """A fresh solver with these settings and the structure's block sizes, for one run."""
+        return PCGSolver(tol=self.tol, maxiter=self.maxiter, preconditioner=self.preconditioner, dims=structure.dims)
+
+    def __call__(self, H: sp.csc_matrix, b: ArrayLike) -> FloatArray:
+        """``x ≈ H⁻¹b`` (see :func:`pcg_solve`, whose errors it raises)."""
+        self.last = None
+        result = pcg_solve(H, b, tol=self.tol, maxiter=self.maxiter, preconditioner=self.preconditioner, dims=self.dims)
+        self.last = result
+        return result.x
+
+    @property
+    def stats(self) -> Mapping[str, float]:
+        """``linear_iterations``, ``linear_residual`` (``‖b − Hx‖/‖b‖``) and
+        ``linear_converged`` (1.0 or 0.0: stopped by ``maxiter``) of the last call."""
+        r = self.last
+        if r is None:
+            return MappingProxyType({})
+        return MappingProxyType(
+            {"linear_iterations": float(r.nit), "linear_residual": r.residual, "linear_converged": float(r.converged)}
+        )

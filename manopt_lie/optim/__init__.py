@@ -1,4 +1,8 @@
-"""Problems and Riemannian optimizers."""
+"""Problems and Riemannian optimizers.
+
+Every optimizer is listed once, in :data:`OPTIMIZERS` (:mod:`.registry`), by
+its short name (``"gd"``, ``"cg"``, ``"gn"``, ``"lm"``, ``"tr"``).
+"""
 
 from .conjugate_gradient import ConjugateGradient
 from .gradient_descent import GradientDescent
@@ -6,7 +10,9 @@ from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
 from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt, NonlinearLeastSquares
 from .optimizer import Optimizer, StoppingCriteria
+from .preconditioners import PRECONDITIONERS, Preconditioner
 from .problem import Problem
+from .registry import OPTIMIZERS, OptimizerEntry, UnknownOptimizerError, get_optimizer, register
 from .result import History, IterationInfo, OptimizeResult, Status
 from .trust_region import TrustRegion
 
@@ -20,6 +26,8 @@ __all__ = [
     "GradientDescent",
     "ConjugateGradient",
     "TrustRegion",
+    "PRECONDITIONERS",
+    "Preconditioner",
     "LineSearch",
     "Backtracking",
     "StrongWolfe",
@@ -27,6 +35,11 @@ __all__ = [
     "GaussNewton",
     "LevenbergMarquardt",
     "NonlinearLeastSquares",
+    "OPTIMIZERS",
+    "OptimizerEntry",
+    "UnknownOptimizerError",
+    "get_optimizer",
+    "register",
     "OptimizeResult",
     "Status",
     "History",

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 from .line_search import Backtracking, LineSearch, StrongWolfe, select_line_search
-from .optimizer import Optimizer, Run
+from .optimizer import Optimizer, Run, StoppingCriteria
 from .result import OptimizeResult, Status
 
 BETA_RULES = ("fletcher-reeves", "polak-ribiere", "hestenes-stiefel", "hager-zhang")
@@ -53,8 +53,8 @@ class ConjugateGradient(Optimizer):
     curvature : float
         ``c₂`` of the strong Wolfe search (0.1: a nearly exact step keeps the directions
         conjugate).
-    **stopping
-        See :class:`~manopt_lie.optim.optimizer.StoppingCriteria`.
+    stopping, **fields
+        A :class:`~manopt_lie.optim.StoppingCriteria`, or its fields as keywords.
     """
 
     def __init__(
@@ -68,9 +68,10 @@ class ConjugateGradient(Optimizer):
         contraction: float = 0.5,
         max_backtracks: int = 30,
         curvature: float = 0.1,
-        **stopping: Any,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
     ) -> None:
-        super().__init__(**stopping)
+        super().__init__(stopping=stopping, **fields)
         if beta not in BETA_RULES:
             raise ValueError(f"ConjugateGradient: beta must be one of {BETA_RULES}, got {beta!r}")
         self.beta, self.restart_every, self.orthogonality = beta, restart_every, orthogonality

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from .line_search import Backtracking, LineSearch, StrongWolfe, select_line_search
-from .optimizer import Optimizer, Run
+from .optimizer import Optimizer, Run, StoppingCriteria
 from .result import OptimizeResult, Status
 
 
@@ -30,8 +30,8 @@ class GradientDescent(Optimizer):
         before it fails.
     curvature : float
         ``c₂`` of the strong Wolfe search (0.9: steepest descent needs no exact step).
-    **stopping
-        See :class:`~manopt_lie.optim.optimizer.StoppingCriteria`.
+    stopping, **fields
+        A :class:`~manopt_lie.optim.StoppingCriteria`, or its fields as keywords.
 
     Notes
     -----
@@ -48,9 +48,10 @@ class GradientDescent(Optimizer):
         contraction: float = 0.5,
         max_backtracks: int = 30,
         curvature: float = 0.9,
-        **stopping: Any,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
     ) -> None:
-        super().__init__(**stopping)
+        super().__init__(stopping=stopping, **fields)
         self.line_search = select_line_search(
             line_search,
             lambda: Backtracking(sufficient_decrease, contraction, max_backtracks, optimism=1.0),

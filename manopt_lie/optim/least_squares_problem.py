@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
-from ..linalg import BlockStructure, CholeskySolver
+from ..linalg import BlockStructure
 from ..manifolds import Power
 from .losses import RobustLoss, Trivial, parse_loss
 from .problem import Problem
@@ -100,7 +100,7 @@ class LeastSquaresProblem(Problem):
         :meth:`hess` (the trust region) instead of the Gauss-Newton model.
     """
 
-    __slots__ = ("_cache", "_dim", "_factorized", "_factors", "_fixed", "_n", "_solver", "_structure")
+    __slots__ = ("_cache", "_dim", "_factors", "_fixed", "_n", "_structure")
 
     def __init__(
         self,
@@ -127,19 +127,8 @@ class LeastSquaresProblem(Problem):
         self._fixed[np.asarray(fixed, dtype=np.int64)] = True
         self._structure: BlockStructure | None = None
         self._cache: tuple[Any, Linearization] | None = None
-        self._solver = CholeskySolver()
-        self._factorized: Any = None  # the point whose Gauss-Newton matrix the solver holds
         rhess = hessian if hessian is not None else self._gauss_newton_product
         super().__init__(manifold, self._evaluate_cost, rgrad=self._evaluate_grad, rhess=rhess)
-
-    @classmethod
-    def from_casadi(  # type: ignore[override]
-        cls, manifold: Power, variables: Any, residual: Any = None, **options: Any
-    ) -> LeastSquaresProblem:
-        """Symbolic residuals: see :func:`manopt_lie.casadi.least_squares_from_casadi`."""
-        from ..casadi.problems import least_squares_from_casadi
-
-        return least_squares_from_casadi(manifold, variables, residual, **options)
 
     @property
     def factors(self) -> tuple[Factor, ...]:
@@ -190,18 +179,6 @@ class LeastSquaresProblem(Problem):
     def _gauss_newton_product(self, x: Any, v: FloatArray) -> FloatArray:
         """``JᵀWJ v`` (fixed variables: ``v`` itself, which no step ever excites)."""
         return (self.linearize(x).hessian @ np.asarray(v).reshape(-1)).reshape(self._n, self._dim)
-
-    def preconditioner(self, x: Any, r: FloatArray) -> FloatArray:
-        """``(JᵀWJ)⁻¹ r``: the Gauss-Newton matrix at ``x`` as a preconditioner for
-        truncated CG (:class:`~manopt_lie.optim.TrustRegion` uses it by default). One
-        sparse factorization per point, reusing the symbolic analysis."""
-        if self._factorized is not x:
-            h = self.linearize(x).hessian
-            if not self._solver.matches(h):
-                self._solver.analyze(h)
-            self._solver.factorize(h)
-            self._factorized = x
-        return self._solver.solve(np.asarray(r).reshape(-1)).reshape(self._n, self._dim)
 
     @property
     def structure(self) -> BlockStructure | None:

@@ -1,8 +1,10 @@
 """Gauss-Newton and Levenberg-Marquardt: one nonlinear-least-squares loop, two step rules.
 
 Each iteration linearizes at ``x`` (gradient ``g = JᵀWr``, ``H = JᵀWJ`` with a
-fixed sparsity pattern), computes a tangent step ``δ`` from a sparse
-Cholesky solve whose symbolic analysis is done once, and moves to
+fixed sparsity pattern), computes a tangent step ``δ`` from the normal
+equations with a pluggable :class:`~manopt_lie.linalg.LinearSolver` — by
+default a sparse Cholesky solve whose symbolic analysis is done once per run,
+or preconditioned conjugate gradients (``linear_solver="pcg"``) — and moves to
 ``R_x(δ)``. A singular system (an unfixed gauge, a variable no factor touches)
 raises :class:`~manopt_lie.linalg.SingularSystemError` rather than taking a
 garbage step.
@@ -17,20 +19,24 @@ from typing import Any
 
 import numpy as np
 
-from ..linalg import CholeskySolver
+from ..linalg import LinearSolver, get_linear_solver
 from .least_squares_problem import LeastSquaresProblem, Linearization
 from .line_search import armijo
-from .optimizer import Optimizer, Run
+from .optimizer import Optimizer, Run, StoppingCriteria
 from .result import OptimizeResult, Status
 
 
 @dataclass
 class _Step:
+    """One iteration's outcome. ``status`` ends the run (e.g. a failed line search);
+    ``extra`` holds only numbers, for the history."""
+
     x: Any
     f: float
     step: float  # ‖δ‖, nan when rejected
     accepted: bool
     extra: dict[str, float]
+    status: Status | None = None
 
 
 @dataclass
@@ -39,16 +45,47 @@ class _Damping:
     nu: float = 2.0
 
 
+def _no_descent(lin: Linearization) -> Status:
+    """Why a step that is no descent direction ends the run: a stationary point
+    (``g = 0`` exactly, so ``δ = 0``) or a failed linear solve."""
+    return Status.STEP_SIZE if not lin.grad.any() else Status.LINEAR_SOLVER_FAILED
+
+
 class NonlinearLeastSquares(Optimizer):
-    """The shared loop; subclasses implement :meth:`_step`."""
+    """The shared loop; subclasses implement :meth:`_step`.
+
+    Parameters
+    ----------
+    linear_solver : {"cholesky", "pcg"}, LinearSolver or None
+        How the normal equations are solved: a name of
+        :data:`~manopt_lie.linalg.LINEAR_SOLVERS`, or a
+        :class:`~manopt_lie.linalg.LinearSolver` used as a template (e.g.
+        ``PCGSolver(tol=1e-8)``); ``None`` is ``"cholesky"``. Each run binds a
+        fresh solver to the problem's structure, so ``solve`` is reentrant. An
+        iterative solver's numbers (``linear_iterations``, ``linear_residual``,
+        ``linear_converged``) go to the history's extras.
+    stopping, **fields
+        A :class:`~manopt_lie.optim.StoppingCriteria`, or its fields as keywords.
+    """
+
+    def __init__(
+        self,
+        *,
+        linear_solver: str | LinearSolver | None = None,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
+    ) -> None:
+        super().__init__(stopping=stopping, **fields)
+        self.linear_solver = get_linear_solver(linear_solver)
 
     def _solve(self, run: Run, x0: Any) -> OptimizeResult:
         problem = run.problem
         if not isinstance(problem, LeastSquaresProblem):
             raise TypeError(f"{type(self).__name__} needs a LeastSquaresProblem, got {type(problem).__name__}")
-        solver = CholeskySolver()
         x = x0
         lin = self._linearize(run, problem, x)
+        assert problem.structure is not None  # built by the first linearization
+        solver = self.linear_solver.bind(problem.structure)
         f_prev: float | None = None
         status = Status.CALLBACK if run.record(x, lin.cost, self._norm(lin)) else run.stop_reason()
         state = self._initial_state(lin)
@@ -58,7 +95,10 @@ class NonlinearLeastSquares(Optimizer):
                 f_prev, x = lin.cost, step.x
                 lin = self._linearize(run, problem, x)
             stop = run.record(x, lin.cost, self._norm(lin), step.step, **step.extra)
-            status = Status.CALLBACK if stop else self._stop_reason(run, f_prev if step.accepted else None, step, state)
+            if stop:
+                status = Status.CALLBACK
+            else:
+                status = step.status or run.stop_reason(f_prev if step.accepted else None)
         return run.result(x, status)
 
     @staticmethod
@@ -72,71 +112,109 @@ class NonlinearLeastSquares(Optimizer):
         return float(np.linalg.norm(lin.grad))
 
     @staticmethod
-    def _newton_system_step(solver: CholeskySolver, h: Any, g: Any) -> Any:
-        return solver(h, -g.reshape(-1)).reshape(g.shape)
+    def _newton_system_step(solver: LinearSolver, h: Any, g: Any) -> tuple[Any, dict[str, float]]:
+        """``δ = −h⁻¹g`` and the solver's numbers about it."""
+        delta = solver(h, -g.reshape(-1)).reshape(g.shape)
+        return delta, dict(solver.stats)
 
     def _initial_state(self, lin: Linearization) -> Any:
         """Per-run state (e.g. the damping), kept out of the optimizer so ``solve`` is reentrant."""
         return None
 
-    def _stop_reason(self, run: Run, f_prev: float | None, step: _Step, state: Any) -> Status | None:
-        return run.stop_reason(f_prev)
-
     @abstractmethod
     def _step(
-        self, run: Run, problem: LeastSquaresProblem, solver: CholeskySolver, x: Any, lin: Linearization, state: Any
+        self, run: Run, problem: LeastSquaresProblem, solver: LinearSolver, x: Any, lin: Linearization, state: Any
     ) -> _Step:
         """One iteration from the linearization ``lin`` at ``x``."""
 
 
 class GaussNewton(NonlinearLeastSquares):
     """``δ = −H⁻¹g`` with ``H = JᵀWJ``, then a backtracking Armijo search on ``R_x(α δ)``
-    from ``α = 1`` (full Gauss-Newton steps near the solution)."""
+    from ``α = 1`` (full Gauss-Newton steps near the solution).
 
-    def __init__(self, *, sufficient_decrease: float = 1e-4, max_backtracks: int = 30, **stopping: Any) -> None:
-        super().__init__(**stopping)
+    A direction that is not one of descent, ``gᵀδ ≥ 0``, is never taken: with an
+    exact solve it arises only at ``g = 0`` (stop with ``Status.STEP_SIZE``);
+    otherwise the linear solver failed (``Status.LINEAR_SOLVER_FAILED``). No
+    decrease along ``δ`` stops the run with ``Status.LINE_SEARCH_FAILED``.
+    ``history.extra["alpha"]`` is the accepted ``α``.
+
+    Parameters
+    ----------
+    sufficient_decrease, max_backtracks
+        The Armijo search's ``c₁`` and its number of backtracks before it fails.
+    linear_solver, stopping, **fields
+        See :class:`NonlinearLeastSquares`.
+    """
+
+    def __init__(
+        self,
+        *,
+        sufficient_decrease: float = 1e-4,
+        max_backtracks: int = 30,
+        linear_solver: str | LinearSolver | None = None,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
+    ) -> None:
+        super().__init__(linear_solver=linear_solver, stopping=stopping, **fields)
         self.sufficient_decrease, self.max_backtracks = sufficient_decrease, max_backtracks
 
     def _step(
-        self, run: Run, problem: LeastSquaresProblem, solver: CholeskySolver, x: Any, lin: Linearization, state: Any
+        self, run: Run, problem: LeastSquaresProblem, solver: LinearSolver, x: Any, lin: Linearization, state: Any
     ) -> _Step:
-        delta = self._newton_system_step(solver, lin.hessian, lin.grad)
+        delta, extra = self._newton_system_step(solver, lin.hessian, lin.grad)
         slope = float(np.sum(lin.grad * delta))
         d_norm = float(np.linalg.norm(delta))
-        if not slope < 0:  # only when g = 0 to round-off
-            return _Step(x, lin.cost, 0.0, False, {"alpha": 0.0})
+        if not slope < 0:
+            return _Step(x, lin.cost, math.nan, False, {"alpha": 0.0, **extra}, _no_descent(lin))
         ls = armijo(
             run.cost, run.manifold, x, lin.cost, delta, d_norm, slope, 1.0,
             sufficient_decrease=self.sufficient_decrease, max_backtracks=self.max_backtracks,
         )  # fmt: skip
         if not ls.success:
-            return _Step(x, lin.cost, math.nan, False, {"alpha": 0.0, "failed": 1.0})
-        return _Step(ls.x, ls.fun, ls.step, True, {"alpha": ls.alpha})
-
-    def _stop_reason(self, run: Run, f_prev: float | None, step: _Step, state: Any) -> Status | None:
-        if step.extra.get("failed"):
-            return Status.LINE_SEARCH_FAILED
-        if not step.accepted:
-            return Status.STEP_SIZE
-        return run.stop_reason(f_prev)
+            return _Step(x, lin.cost, math.nan, False, {"alpha": 0.0, **extra}, Status.LINE_SEARCH_FAILED)
+        return _Step(ls.x, ls.fun, ls.step, True, {"alpha": ls.alpha, **extra})
 
 
 class LevenbergMarquardt(NonlinearLeastSquares):
     """``(H + λD) δ = −g`` with Marquardt's scaling ``D = diag(H)`` (clipped to
     ``[1e-6, 1e32]`` as Ceres does), accepted when the gain ratio
-    ``ρ = (f(x) − f(R_x(δ))) / (½ δᵀ(λDδ − g))`` is positive.
+    ``ρ = (f(x) − f(R_x(δ))) / (−gᵀδ − ½δᵀHδ)`` is positive.
+
+    The denominator is the decrease of the Gauss-Newton model; for an exact
+    solve it equals ``½δᵀ(λDδ − g)``, and for an inexact one (PCG) it is still
+    the model's, so a poor step is judged honestly. A step the model does not
+    predict to decrease the cost is not taken (nor evaluated): it ends the run
+    as for :class:`GaussNewton`.
 
     Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
-    ``ν ← 2`` (``λ`` at least 1e-15); on failure ``λ ← λν``, ``ν ← 2ν``. Since ``D`` carries the scale
+    ``ν ← 2`` (``λ`` at least 1e-15); on failure ``λ ← λν``, ``ν ← 2ν``; past
+    ``max_damping`` no step of any size decreases the cost and the run stops
+    with ``Status.STEP_SIZE``. Since ``D`` carries the scale
     of ``H``, ``λ`` is dimensionless and starts at ``initial_damping``, by default
     1e-6. Pose graphs' normal equations are ill-conditioned (condition 10⁸–10¹¹):
     there Ceres's ``10⁻⁴`` freezes the weak directions for several iterations and
     needed 2-3x the iterations of ``10⁻⁶`` (``benchmarks/bench_pose_graph.py``);
-    ``λ`` grows quickly when the model is poor.
+    ``λ`` grows quickly when the model is poor. ``history.extra`` holds
+    ``damping`` (the ``λ`` of the step) and ``rho``.
+
+    Parameters
+    ----------
+    initial_damping, max_damping : float
+        ``λ₀ > 0`` and the ``λ`` beyond which the run stops.
+    linear_solver, stopping, **fields
+        See :class:`NonlinearLeastSquares`.
     """
 
-    def __init__(self, *, initial_damping: float = 1e-6, max_damping: float = 1e32, **stopping: Any) -> None:
-        super().__init__(**stopping)
+    def __init__(
+        self,
+        *,
+        initial_damping: float = 1e-6,
+        max_damping: float = 1e32,
+        linear_solver: str | LinearSolver | None = None,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
+    ) -> None:
+        super().__init__(linear_solver=linear_solver, stopping=stopping, **fields)
         if not initial_damping > 0:
             raise ValueError(f"LevenbergMarquardt: initial_damping must be positive, got {initial_damping}")
         self.initial_damping, self.max_damping = initial_damping, max_damping
@@ -145,18 +223,21 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         return _Damping(self.initial_damping)
 
     def _step(
-        self, run: Run, problem: LeastSquaresProblem, solver: CholeskySolver, x: Any, lin: Linearization, state: Any
+        self, run: Run, problem: LeastSquaresProblem, solver: LinearSolver, x: Any, lin: Linearization, state: Any
     ) -> _Step:
         assert problem.structure is not None
         scaling = np.clip(lin.hessian.diagonal(), 1e-6, 1e32)
         damped = problem.structure.add_diagonal(lin.hessian, state.lam * scaling)
-        delta = self._newton_system_step(solver, damped, lin.grad)
-        flat = delta.reshape(-1)
-        predicted = 0.5 * float(flat @ (state.lam * scaling * flat - lin.grad.reshape(-1)))
+        delta, extra = self._newton_system_step(solver, damped, lin.grad)
+        flat, g = delta.reshape(-1), lin.grad.reshape(-1)
+        predicted = -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
+        extra = {"damping": state.lam, **extra}
+        if not predicted > 0:  # (H + λD) is SPD, so an exact solve always predicts a decrease unless g = 0
+            return _Step(x, lin.cost, math.nan, False, {**extra, "rho": math.nan}, _no_descent(lin))
         x_new = run.manifold.retr(x, delta)
         f_new = run.cost(x_new)
-        rho = (lin.cost - f_new) / predicted if predicted > 0 else -math.inf
-        extra = {"damping": state.lam, "rho": rho}
+        rho = (lin.cost - f_new) / predicted
+        extra["rho"] = rho
         if rho > 0:
             # Floored: after hundreds of successes λ would underflow to 0, and 0·ν = nan on a failure.
             state.lam = max(state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
@@ -164,9 +245,5 @@ class LevenbergMarquardt(NonlinearLeastSquares):
             return _Step(x_new, f_new, float(np.linalg.norm(flat)), True, extra)
         state.lam *= state.nu
         state.nu *= 2.0
-        return _Step(x, lin.cost, math.nan, False, extra)
-
-    def _stop_reason(self, run: Run, f_prev: float | None, step: _Step, state: Any) -> Status | None:
-        if state.lam > self.max_damping:
-            return Status.STEP_SIZE  # no step of any size decreases the cost
-        return run.stop_reason(f_prev)
+        # Past max_damping no step of any size decreases the cost.
+        return _Step(x, lin.cost, math.nan, False, extra, Status.STEP_SIZE if state.lam > self.max_damping else None)

@@ -15,7 +15,8 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from dataclasses import fields as dataclass_fields
 from typing import Any
 
 import numpy as np
@@ -46,14 +47,29 @@ class StoppingCriteria:
         Stop once an accepted iteration decreases the cost by less than this
         fraction, ``(f_prev − f) ≤ rel_cost_decrease·max(1, |f_prev|)``
         (SE-Sync uses 1e-6); 0 disables the test.
+
+    Notes
+    -----
+    The fields are defined here only: every optimizer takes either a whole
+    ``StoppingCriteria`` (``stopping=``) or these fields as keywords, and a
+    command line can build its options from ``dataclasses.fields(StoppingCriteria)``,
+    whose ``metadata["help"]`` is a one-line description.
     """
 
-    max_iterations: int = 1000
-    max_time: float = math.inf
-    grad_rtol: float = 1e-6
-    grad_atol: float = 1e-12
-    min_step: float = 1e-12
-    rel_cost_decrease: float = 0.0
+    max_iterations: int = field(default=1000, metadata={"help": "stop after this many iterations"})
+    max_time: float = field(default=math.inf, metadata={"help": "stop after this many seconds of wall time"})
+    grad_rtol: float = field(
+        default=1e-6,
+        metadata={"help": "stop when the gradient norm falls below this fraction of its value at the start"},
+    )
+    grad_atol: float = field(
+        default=1e-12, metadata={"help": "stop when the gradient norm falls below this absolute value"}
+    )
+    min_step: float = field(default=1e-12, metadata={"help": "stop when an accepted step is shorter than this"})
+    rel_cost_decrease: float = field(
+        default=0.0,
+        metadata={"help": "stop when a step lowers the cost by less than this fraction of it (0: never)"},
+    )
 
     def __post_init__(self) -> None:
         for name in ("grad_rtol", "grad_atol", "min_step", "rel_cost_decrease", "max_time"):
@@ -61,6 +77,9 @@ class StoppingCriteria:
                 raise ValueError(f"{name} must be non-negative, got {getattr(self, name)!r}")
         if self.max_iterations < 0:
             raise ValueError(f"max_iterations must be non-negative, got {self.max_iterations}")
+
+
+STOPPING_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(StoppingCriteria))
 
 
 class Run:
@@ -154,17 +173,37 @@ class Run:
 class Optimizer(ABC):
     """Base class: settings in ``__init__``, one ``solve`` for every problem."""
 
-    def __init__(
-        self,
-        *,
-        max_iterations: int = 1000,
-        max_time: float = math.inf,
-        grad_rtol: float = 1e-6,
-        grad_atol: float = 1e-12,
-        min_step: float = 1e-12,
-        rel_cost_decrease: float = 0.0,
-    ) -> None:
-        self.stopping = StoppingCriteria(max_iterations, max_time, grad_rtol, grad_atol, min_step, rel_cost_decrease)
+    def __init__(self, *, stopping: StoppingCriteria | None = None, **fields: Any) -> None:
+        """Keep the stopping rule: ``stopping``, or ``StoppingCriteria(**fields)``.
+
+        Parameters
+        ----------
+        stopping : StoppingCriteria, optional
+            The whole rule.
+        **fields
+            Or some of its fields (``max_iterations=…``), the others at their defaults.
+
+        Raises
+        ------
+        TypeError
+            If both are given, ``stopping`` is not a ``StoppingCriteria``, or a
+            keyword is not a field (naming it).
+        """
+        name = type(self).__name__
+        unknown = [k for k in fields if k not in STOPPING_FIELDS]
+        if unknown:
+            raise TypeError(
+                f"{name}: unknown option{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; "
+                "besides its own options it takes stopping= or the StoppingCriteria fields "
+                f"{', '.join(STOPPING_FIELDS)}"
+            )
+        if stopping is None:
+            stopping = StoppingCriteria(**fields)
+        elif fields:
+            raise TypeError(f"{name}: pass either stopping= or its fields ({', '.join(fields)}), not both")
+        elif not isinstance(stopping, StoppingCriteria):
+            raise TypeError(f"{name}: stopping must be a StoppingCriteria, got {type(stopping).__name__}")
+        self.stopping = stopping
 
     def solve(self, problem: Problem, x0: Any, callback: Callback | None = None) -> OptimizeResult:
         """Minimize ``problem`` from ``x0``.

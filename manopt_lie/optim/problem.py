@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..manifolds.base import Manifold, Point, Tangent
-
-if TYPE_CHECKING:
-    from ..manifolds import LieGroupManifold, Power
 
 __all__ = ["Problem"]
 
@@ -90,13 +87,6 @@ class Problem:
         if self._egrad_cache is None or self._egrad_cache[0] is not x:
             self._egrad_cache = (x, self._egrad(x))
         return self._egrad_cache[1]
-
-    @classmethod
-    def from_casadi(cls, manifold: LieGroupManifold | Power, cost: Any, **options: Any) -> Problem:
-        """A problem from a symbolic CasADi cost: see :func:`manopt_lie.casadi.problem_from_casadi`."""
-        from ..casadi.problems import problem_from_casadi  # lazy: avoids a circular import
-
-        return problem_from_casadi(manifold, cost, **options)
 
     def __repr__(self) -> str:
         given = [n for n in ("egrad", "rgrad", "ehess", "rhess") if getattr(self, "_" + n) is not None]

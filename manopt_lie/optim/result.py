@@ -19,6 +19,7 @@ class Status(Enum):
     MAX_ITERATIONS = "the iteration limit was reached"
     MAX_TIME = "the time limit was reached"
     LINE_SEARCH_FAILED = "the line search found no decrease"
+    LINEAR_SOLVER_FAILED = "the linear solver gave no descent direction"
     CALLBACK = "the callback asked to stop"
 
     @property

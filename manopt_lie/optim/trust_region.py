@@ -9,10 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from .optimizer import Optimizer, Run
+from .optimizer import Optimizer, Run, StoppingCriteria
+from .preconditioners import Preconditioner, bind_preconditioner, check_preconditioner
 from .result import OptimizeResult, Status
-
-Preconditioner = Callable[[Any, Any], Any]
 
 
 @dataclass(frozen=True)
@@ -21,6 +20,10 @@ class _InnerResult:
     h_eta: Any
     iterations: int
     reason: str  # "residual", "negative curvature", "boundary" or "max iterations"
+
+
+def _identity(x: Any, r: Any) -> Any:
+    return r
 
 
 class TrustRegion(Optimizer):
@@ -44,12 +47,16 @@ class TrustRegion(Optimizer):
         Inner stopping parameters.
     max_inner_iterations : int, optional
         Default: the manifold's dimension.
-    preconditioner : callable ``(x, r) ↦ z``, optional
-        A symmetric positive definite operator on tangent vectors approximating ``H⁻¹``
-        (the trust region is then measured in its norm). By default the problem's own
-        ``preconditioner`` method when it has one — for least-squares problems the
-        Gauss-Newton matrix ``(JᵀWJ)⁻¹`` — and none otherwise; pass
-        ``lambda x, r: r`` to switch it off.
+    preconditioner : {"auto", "gauss-newton", "block-jacobi", "identity"} or callable ``(x, r) ↦ z``
+        A symmetric positive definite operator ``P ≈ H⁻¹`` on tangent vectors (the
+        trust region is then measured in the norm ``‖η‖_P = √⟨η, P⁻¹η⟩``).
+        ``"gauss-newton"``: ``(JᵀWJ)⁻¹`` of a least-squares problem at the current
+        point, by a sparse Cholesky factorization per outer iteration (analysis
+        once per run); ``"block-jacobi"``: the inverse of the diagonal blocks of
+        ``JᵀWJ``; ``"identity"``: none; ``"auto"`` (default): ``"gauss-newton"``
+        for a :class:`~manopt_lie.optim.LeastSquaresProblem`, ``"identity"``
+        otherwise (see :mod:`~manopt_lie.optim.preconditioners`). A named one built
+        from ``JᵀWJ`` on another problem raises ``ValueError`` in :meth:`solve`.
     fd_step : float
         The finite-difference step, relative to ``‖v‖``.
     """
@@ -63,16 +70,18 @@ class TrustRegion(Optimizer):
         kappa: float = 0.1,
         theta: float = 1.0,
         max_inner_iterations: int | None = None,
-        preconditioner: Preconditioner | None = None,
+        preconditioner: str | Preconditioner = "auto",
         fd_step: float = 2.0**-14,
-        **stopping: Any,
+        stopping: StoppingCriteria | None = None,
+        **fields: Any,
     ) -> None:
-        super().__init__(**stopping)
+        super().__init__(stopping=stopping, **fields)
         if not 0 <= rho_prime < 0.25:
             raise ValueError(f"TrustRegion: rho_prime must be in [0, 1/4), got {rho_prime}")
         self.max_radius, self.initial_radius = max_radius, initial_radius
         self.rho_prime, self.kappa, self.theta = rho_prime, kappa, theta
-        self.max_inner_iterations, self.preconditioner, self.fd_step = max_inner_iterations, preconditioner, fd_step
+        self.preconditioner = check_preconditioner(preconditioner)
+        self.max_inner_iterations, self.fd_step = max_inner_iterations, fd_step
 
     # ---- the model's Hessian ------------------------------------------------------
 
@@ -93,10 +102,11 @@ class TrustRegion(Optimizer):
 
     # ---- truncated CG -------------------------------------------------------------
 
-    def _tcg(self, run: Run, x: Any, g: Any, hess: Callable[[Any], Any], radius: float) -> _InnerResult:
+    def _tcg(
+        self, run: Run, x: Any, g: Any, hess: Callable[[Any], Any], radius: float, precon: Preconditioner
+    ) -> _InnerResult:
         """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region."""
         m = run.manifold
-        precon = self.preconditioner or getattr(run.problem, "preconditioner", None) or (lambda _x, r: r)
         max_inner = self.max_inner_iterations or max(1, m.dim)
         eta, h_eta = m.zero_vector(x), m.zero_vector(x)
         r = g
@@ -132,6 +142,7 @@ class TrustRegion(Optimizer):
 
     def _solve(self, run: Run, x0: Any) -> OptimizeResult:
         m = run.manifold
+        precon = bind_preconditioner(self.preconditioner, run.problem) or _identity  # this run's own state
         max_radius = self.max_radius or m.typical_dist
         radius = self.initial_radius or max_radius / 8.0
         x, f = x0, run.cost(x0)
@@ -139,7 +150,7 @@ class TrustRegion(Optimizer):
         g_norm = run.norm(x, g)
         status = Status.CALLBACK if run.record(x, f, g_norm, radius=radius) else run.stop_reason()
         while status is None:
-            inner = self._tcg(run, x, g, self._hessian(run, x, g), radius)
+            inner = self._tcg(run, x, g, self._hessian(run, x, g), radius, precon)
             x_new = m.retr(x, inner.eta)
             f_new = run.cost(x_new)
             model_decrease = -(run.inner(x, g, inner.eta) + 0.5 * run.inner(x, inner.eta, inner.h_eta))

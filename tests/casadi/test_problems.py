@@ -303,17 +303,22 @@ def test_constant_and_status(rng):
     assert TrustRegion().solve(problem, x).status is Status.GRADIENT_NORM
 
 
-def test_class_constructors_are_the_functions(spd, rng):
-    """``Problem.from_casadi`` / ``LeastSquaresProblem.from_casadi`` are the public spellings."""
+def test_public_spellings(spd, rng):
+    """``manopt_lie.casadi.problem_from_casadi`` / ``least_squares_from_casadi`` are the public
+    spellings; the optim classes have no CasADi constructors (optim never imports casadi)."""
+    import manopt_lie.casadi
     from manopt_lie.optim import Problem
 
+    assert manopt_lie.casadi.problem_from_casadi is problem_from_casadi
+    assert manopt_lie.casadi.least_squares_from_casadi is least_squares_from_casadi
+    assert not hasattr(Problem, "from_casadi") and not hasattr(LeastSquaresProblem, "from_casadi")
     a, x = spd
-    problem = Problem.from_casadi(LieGroupManifold(SO3), quadratic_form(a, x))
+    problem = manopt_lie.casadi.problem_from_casadi(LieGroupManifold(SO3), quadratic_form(a, x))
     assert TrustRegion(grad_rtol=1e-10).solve(problem, SO3.identity()).fun == pytest.approx(
         np.linalg.eigvalsh(a)[0] * x @ x, rel=1e-10
     )
     truth, landmarks, z, residual = range_bearing(rng)
-    lsq = LeastSquaresProblem.from_casadi(
+    lsq = manopt_lie.casadi.least_squares_from_casadi(
         Power(LieGroupManifold(SE2), 1), np.zeros((len(z), 1), dtype=int), residual, data=(landmarks, z)
     )
     assert isinstance(lsq, LeastSquaresProblem)

@@ -21,42 +21,10 @@ from manopt_lie.optim import (
 )
 from manopt_lie.optim.losses import L1, Cauchy, GemanMcClure, Huber, TruncatedL2, parse_loss
 
+from .helpers import between, pose_chain
+
 SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
 solvers = pytest.mark.parametrize("make", SOLVERS.values(), ids=SOLVERS.keys())
-
-
-def between(z):
-    """The residual ``(Xᵢ⁻¹Xⱼ) ⊖ Z`` of relative-pose measurements ``Z`` and its Jacobians."""
-
-    def residual(xi, xj, jac):
-        if not jac:
-            return xi.between(xj).rminus(z)
-        e, j_i, j_j = xi.between(xj, jac=True)
-        r, j_e, _ = e.rminus(z, jac=True)
-        return r, [j_e @ j_i, j_e @ j_j]
-
-    return residual
-
-
-def pose_chain(group, n=40, closures=15, seed=0):
-    """A random-walk trajectory, exact odometry and loop-closure measurements."""
-    rng = np.random.default_rng(seed)
-    steps = 0.3 * rng.standard_normal((n - 1, group.dim))
-    poses = [group.identity()]
-    for s in steps:
-        poses.append(poses[-1].rplus(s))
-    truth = group.stack(poses)
-    odometry = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
-    loops = rng.choice(n, size=(closures, 2))
-    loops = loops[loops[:, 0] != loops[:, 1]]
-    edges = np.concatenate([odometry, loops])
-    z = truth[edges[:, 0]].between(truth[edges[:, 1]])
-    problem = LeastSquaresProblem(
-        Power(LieGroupManifold(group), n), [Factor(edges, between(z), name="between")], fixed=[0]
-    )
-    noise = 0.1 * rng.standard_normal((n, group.dim))
-    noise[0] = 0.0
-    return problem, truth, truth.rplus(noise)
 
 
 @solvers

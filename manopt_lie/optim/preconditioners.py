@@ -1,0 +1,139 @@
+"""Preconditioners of the trust region's truncated CG, chosen by name and built once per run.
+
+A preconditioner is a symmetric positive definite operator ``P ≈ H⁻¹`` on
+tangent vectors, applied as ``z = P(x, r)``. The named ones come from the
+Gauss-Newton matrix ``G = JᵀWJ`` of a :class:`LeastSquaresProblem` at the
+current point:
+
+* ``"gauss-newton"``: ``P = G⁻¹`` by a sparse Cholesky factorization, whose
+  symbolic analysis is done once per run and whose numeric factorization is
+  redone once per outer iteration (the point changes only then);
+* ``"block-jacobi"``: ``P = blkdiag(G_vv)⁻¹``, the inverse of each variable's
+  diagonal block: no fill-in, for graphs whose factor is dense;
+* ``"identity"``: no preconditioning;
+* ``"auto"``: ``"gauss-newton"`` for a least-squares problem, ``"identity"`` otherwise.
+
+The per-point state (the factorization and the point it belongs to) lives in
+the object :func:`bind_preconditioner` makes for one run, never in the
+optimizer or the problem, so concurrent runs do not share it.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from ..linalg import CholeskySolver, block_jacobi
+from .least_squares_problem import LeastSquaresProblem
+from .problem import Problem
+
+__all__ = ["PRECONDITIONERS", "Preconditioner", "bind_preconditioner", "check_preconditioner"]
+
+Preconditioner = Callable[[Any, Any], Any]
+PRECONDITIONERS = ("auto", "gauss-newton", "block-jacobi", "identity")
+_NEED_LEAST_SQUARES = ("gauss-newton", "block-jacobi")
+
+
+def check_preconditioner(spec: str | Preconditioner, owner: str = "TrustRegion") -> str | Preconditioner:
+    """``spec`` if it is one of :data:`PRECONDITIONERS` or a callable ``(x, r) ↦ z``.
+
+    Raises
+    ------
+    ValueError
+        On an unknown name (listing the choices).
+    TypeError
+        If ``spec`` is neither a string nor callable.
+    """
+    if isinstance(spec, str):
+        if spec not in PRECONDITIONERS:
+            raise ValueError(f"{owner}: unknown preconditioner {spec!r}; choose from {', '.join(PRECONDITIONERS)}")
+    elif not callable(spec):
+        raise TypeError(
+            f"{owner}: preconditioner must be one of {', '.join(PRECONDITIONERS)} or a callable (x, r) -> z, "
+            f"got {type(spec).__name__}"
+        )
+    return spec
+
+
+def bind_preconditioner(
+    spec: str | Preconditioner, problem: Problem, owner: str = "TrustRegion"
+) -> Preconditioner | None:
+    """The preconditioner of one run on ``problem`` (``None``: the identity).
+
+    Raises
+    ------
+    ValueError
+        If a named preconditioner built from ``JᵀWJ`` is asked for on a problem
+        that is not a :class:`LeastSquaresProblem`.
+    """
+    if not isinstance(spec, str):
+        return spec
+    if spec == "auto":
+        spec = "gauss-newton" if isinstance(problem, LeastSquaresProblem) else "identity"
+    if spec == "identity":
+        return None
+    if not isinstance(problem, LeastSquaresProblem):
+        raise ValueError(
+            f"{owner}: preconditioner={spec!r} is built from the Gauss-Newton matrix JᵀWJ of a "
+            f"LeastSquaresProblem, but the problem is a {type(problem).__name__}; use 'identity', 'auto' "
+            "or a callable (x, r) -> z"
+        )
+    return _GaussNewton(problem) if spec == "gauss-newton" else _BlockJacobi(problem)
+
+
+class _PerPoint(ABC):
+    """Built from ``G = JᵀWJ`` at ``x``, rebuilt when ``x`` changes: optimizers never
+    mutate points, so the identity of ``x`` marks a new outer iteration."""
+
+    def __init__(self, problem: LeastSquaresProblem) -> None:
+        self._problem = problem
+        self._x: Any = None
+
+    def __call__(self, x: Any, r: Any) -> NDArray[np.float64]:
+        if self._x is not x:
+            self._x = None  # a failed rebuild leaves nothing stale behind
+            self._build(self._problem.linearize(x).hessian)
+            self._x = x
+        r_ = np.asarray(r)
+        return self._apply(r_.reshape(-1)).reshape(r_.shape)
+
+    @abstractmethod
+    def _build(self, G: sp.csc_matrix) -> None: ...
+
+    @abstractmethod
+    def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+
+class _GaussNewton(_PerPoint):
+    """``z = G⁻¹r``: one numeric factorization per point, the analysis once per run."""
+
+    def __init__(self, problem: LeastSquaresProblem) -> None:
+        super().__init__(problem)
+        self._solver = CholeskySolver()
+
+    def _build(self, G: sp.csc_matrix) -> None:
+        if not self._solver.matches(G):
+            self._solver.analyze(G)
+        self._solver.factorize(G)
+
+    def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self._solver.solve(r)
+
+
+class _BlockJacobi(_PerPoint):
+    """``z = blkdiag(G_vv)⁻¹ r`` with the variables' blocks of the problem's structure."""
+
+    _M: sp.csr_matrix
+
+    def _build(self, G: sp.csc_matrix) -> None:
+        structure = self._problem.structure
+        assert structure is not None  # linearize built it
+        self._M = block_jacobi(G, structure.dims)
+
+    def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(self._M @ r, dtype=np.float64)
