@@ -7,7 +7,9 @@
   :func:`least_squares_from_casadi`: a cost or residual written once with those
   operations becomes a :class:`~manopt_lie.optim.Problem` (Riemannian gradient
   and Hessian) or a :class:`~manopt_lie.optim.LeastSquaresProblem` (right
-  Jacobians), evaluated on batches by mapped ``casadi.Function``\\ s.
+  Jacobians), evaluated on batches by mapped ``casadi.Function``\\ s. These are
+  the only spellings: :mod:`manopt_lie.optim` does not import CasADi (casadi
+  builds on optim, never the reverse).
 """
 
 from .lie import Matrix, SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic

@@ -91,6 +91,8 @@ def get_linear_solver(spec: str | LinearSolver | None = None) -> LinearSolver:
         if spec not in LINEAR_SOLVERS:
             raise ValueError(f"unknown linear solver {spec!r}; choose from {', '.join(LINEAR_SOLVERS)}")
         return LINEAR_SOLVERS[spec]()
+    if isinstance(spec, type):  # a class passes the structural check, but bind() needs an instance
+        raise TypeError(f"linear_solver: pass an instance, e.g. {spec.__name__}(), not the class")
     if not isinstance(spec, LinearSolver):
         raise TypeError(
             f"linear_solver must be one of {', '.join(LINEAR_SOLVERS)} or an object with bind(structure), "

@@ -119,6 +119,8 @@ def test_linear_solver_names_and_errors():
         GaussNewton(linear_solver="lu")
     with pytest.raises(TypeError, match="bind"):
         LevenbergMarquardt(linear_solver=lambda H, b: b)
+    with pytest.raises(TypeError, match=r"PCGSolver\(\)"):
+        GaussNewton(linear_solver=PCGSolver)
     for bad in ({"tol": 0.0}, {"tol": 1.5}, {"maxiter": 0}, {"preconditioner": "ilu"}):
         with pytest.raises(ValueError):
             PCGSolver(**bad)
