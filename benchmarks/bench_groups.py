@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
-import time
 from collections.abc import Callable
 from typing import Any
 
@@ -26,17 +24,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from manopt_lie import SE2, SE3, SO2, SO3, Rn
+from manopt_lie.bench.timing import median_time
 
 
-def median_time(f: Callable[[], Any], repeat: int) -> float:
+def seconds(f: Callable[[], Any], repeat: int) -> float:
     """Median wall time of ``repeat`` calls, after one warm-up call."""
-    f()
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+    return median_time(f, repeat, warmup=1)[0]
 
 
 def bench_against_scipy(n: int, loop_n: int, repeat: int, rng: np.random.Generator) -> list[dict[str, Any]]:
@@ -53,11 +46,11 @@ def bench_against_scipy(n: int, loop_n: int, repeat: int, rng: np.random.Generat
     ]
     rows = []
     # Our exp returns the rotation matrix; SciPy's from_rotvec stops at a quaternion.
-    matrix_ms = 1e3 * median_time(lambda: Rotation.from_rotvec(tau).as_matrix(), repeat)
+    matrix_ms = 1e3 * seconds(lambda: Rotation.from_rotvec(tau).as_matrix(), repeat)
     for name, ours, theirs, one in cases:
-        t_ours = median_time(ours, repeat)
-        t_scipy = median_time(theirs, repeat)
-        t_loop = median_time(lambda: [one(i) for i in range(loop_n)], max(1, repeat // 2)) / loop_n
+        t_ours = seconds(ours, repeat)
+        t_scipy = seconds(theirs, repeat)
+        t_loop = seconds(lambda: [one(i) for i in range(loop_n)], max(1, repeat // 2)) / loop_n
         rows.append(
             {
                 "op": name,
@@ -88,7 +81,7 @@ def bench_all_groups(n: int, repeat: int, rng: np.random.Generator) -> list[dict
             "rminus+jac": lambda: y.rminus(x, jac=True),
         }
         row = {"group": group.__name__, "n": n}
-        row.update({f"{k}_ns": 1e9 * median_time(f, repeat) / n for k, f in ops.items()})
+        row.update({f"{k}_ns": 1e9 * seconds(f, repeat) / n for k, f in ops.items()})
         rows.append(row)
     return rows
 

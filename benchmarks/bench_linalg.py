@@ -43,13 +43,13 @@ import scipy.sparse.linalg as spla  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench_groups import median_time  # noqa: E402
+from manopt_lie.bench.timing import median_time  # noqa: E402
 from manopt_lie.linalg import BlockStructure, CholeskySolver  # noqa: E402
 
 
 def median_ms(f: Callable[[], Any], repeat: int) -> float:
     """Median wall time of ``repeat`` calls in milliseconds, after one warm-up call."""
-    return 1e3 * median_time(f, repeat)
+    return 1e3 * median_time(f, repeat, warmup=1)[0]
 
 
 def grid_pose_graph(shape: tuple[int, ...], closure_rate: float, rng: np.random.Generator) -> np.ndarray:

@@ -53,9 +53,7 @@ import json
 import math
 import os
 import platform
-import statistics
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -64,6 +62,7 @@ from typing import Any
 import numpy as np
 
 from manopt_lie import SO3
+from manopt_lie.bench.timing import interleaved, median_time
 from manopt_lie.manifolds import LieGroupManifold, Sphere, Stiefel
 from manopt_lie.optim import ConjugateGradient, GradientDescent, OptimizeResult, Problem, TrustRegion
 
@@ -255,16 +254,6 @@ def brockett_case(n: int, p: int, rng: np.random.Generator) -> Case:
 # ---- running ----------------------------------------------------------------------
 
 
-def median_time(run: Callable[[], Any], repeat: int) -> tuple[float, Any]:
-    """Median wall time of ``repeat`` calls and the last call's result."""
-    times, out = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        out = run()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), out
-
-
 @dataclass
 class Timed:
     """A run to time repeatedly, and how to turn its median time and last result into a row."""
@@ -274,26 +263,14 @@ class Timed:
 
 
 def time_interleaved(jobs: list[Timed], repeat: int) -> list[dict[str, Any]]:
-    """Time the jobs in turn, ``repeat`` rounds (so that other load on the machine hits all
-    of them alike), and return their rows. A job that raises is reported, not fatal."""
-    times: list[list[float]] = [[] for _ in jobs]
-    last: list[Any] = [None] * len(jobs)
-    failed: dict[int, str] = {}
-    for _ in range(repeat):
-        for i, job in enumerate(jobs):
-            if i in failed:
-                continue
-            start = time.perf_counter()
-            try:
-                last[i] = job.run()
-            except Exception as exc:  # a failing competitor is reported, not fatal
-                failed[i] = f"error: {type(exc).__name__}: {exc}"[:120]
-                continue
-            times[i].append(time.perf_counter() - start)
+    """:func:`~manopt_lie.bench.timing.interleaved` over the jobs, each outcome turned into its row
+    (a job that raised, or whose row raises, is reported, not fatal)."""
     rows = []
-    for i, job in enumerate(jobs):
+    for job, outcome in zip(jobs, interleaved([job.run for job in jobs], repeat), strict=True):
         try:
-            rows.append({"status": failed[i]} if i in failed else job.row(statistics.median(times[i]), last[i]))
+            if isinstance(outcome, BaseException):
+                raise outcome
+            rows.append(job.row(*outcome))
         except Exception as exc:
             rows.append({"status": f"error: {type(exc).__name__}: {exc}"[:120]})
     return rows

@@ -22,14 +22,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from manopt_lie.bench import peers
+from manopt_lie.bench.timing import median_time
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, TrustRegion
 from manopt_lie.problems import catalogue, g2o
 from manopt_lie.problems.pose_graph import PoseGraph
@@ -39,15 +38,6 @@ from manopt_lie.problems.reference import reference_solve
 DATASETS = {e.name: (e.published.get("chordal"), e.reference_time) for e in catalogue.DATASETS[:-1]}  # no tinyGrid3D
 GTSAM_RULE = 1e-5  # GTSAM's default relativeErrorTol
 data_dir = catalogue.default_data_dir
-
-
-def median_run(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
 
 
 def gtsam_lm(graph: PoseGraph, x0: Any, repeat: int) -> tuple[float, int, Any] | None:
@@ -63,11 +53,11 @@ def bench(name: str, repeat: int) -> list[dict[str, Any]]:
     path = data_dir() / f"{name}.g2o"
     graph = g2o.read(path)
     published, se_sync_time = DATASETS[name]
-    init_time, x0 = median_run(graph.chordal_initialization, repeat)
+    init_time, x0 = median_time(graph.chordal_initialization, repeat)
     rows: list[dict[str, Any]] = []
     base = {"dataset": name, "n": graph.n, "m": graph.m}
 
-    seconds, res = median_run(lambda: TrustRegion().solve(graph.problem("chordal"), x0), repeat)
+    seconds, res = median_time(lambda: TrustRegion().solve(graph.problem("chordal"), x0), repeat)
     rows.append(
         base
         | {
@@ -78,7 +68,7 @@ def bench(name: str, repeat: int) -> list[dict[str, Any]]:
     )  # fmt: skip
     peer = gtsam_lm(graph, x0, repeat)
     for optimizer in (LevenbergMarquardt(rel_cost_decrease=GTSAM_RULE), GaussNewton(rel_cost_decrease=GTSAM_RULE)):
-        seconds, res = median_run(lambda: optimizer.solve(graph.problem("geodesic"), x0), repeat)
+        seconds, res = median_time(lambda: optimizer.solve(graph.problem("geodesic"), x0), repeat)
         rows.append(
             base
             | {

@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from manopt_lie.bench.timing import median_time
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
 from manopt_lie.problems import g2o, rotation_averaging, synthetic
 from manopt_lie.problems.catalogue import default_data_dir
@@ -68,23 +68,14 @@ INSTANCES: dict[str, tuple[Callable[[], Spec], bool]] = {
 }
 
 
-def median_run(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
-    times, out = [], None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
-
-
 def bench(name: str, spec: Spec, parametrizations: list[str], repeat: int) -> list[dict[str, Any]]:
     x0 = spec.chordal_initialization()
     rows = []
     for cost in ("chordal", "geodesic"):
         optimizer = TrustRegion() if cost == "chordal" else LevenbergMarquardt()
-        ours_time, ours = median_run(lambda: optimizer.solve(spec.problem(cost), x0), repeat)
+        ours_time, ours = median_time(lambda: optimizer.solve(spec.problem(cost), x0), repeat)
         for parametrization in parametrizations:
-            _, ref = median_run(lambda: reference_solve(spec, x0, cost=cost, parametrization=parametrization), repeat)
+            _, ref = median_time(lambda: reference_solve(spec, x0, cost=cost, parametrization=parametrization), repeat)
             rows.append(
                 {
                     "instance": name, "n": spec.n, "m": spec.m, "cost": cost, "parametrization": ref.parametrization,

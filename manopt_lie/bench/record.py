@@ -54,10 +54,10 @@ class Run:
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)
         out["gap"] = self.gap
-        return {k: [_finite(x) for x in v] if isinstance(v, list) else _finite(v) for k, v in out.items()}
+        return {k: [finite(x) for x in v] if isinstance(v, list) else finite(v) for k, v in out.items()}
 
 
-def _finite(value: Any) -> Any:
+def finite(value: Any) -> Any:
     """JSON has no nan or inf: they become null."""
     return None if isinstance(value, float) and not math.isfinite(value) else value
 

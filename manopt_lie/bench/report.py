@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import platform
 import sys
@@ -91,7 +90,7 @@ def environment() -> dict[str, str]:
 def document(runs: Sequence[Run], settings: Any) -> dict[str, Any]:
     """The JSON document: settings, environment, runs (with histories) and the summary."""
     return {
-        "settings": dataclasses.asdict(settings),
+        "settings": settings.to_json(),
         "environment": environment(),
         "runs": [r.to_json() for r in runs],
         "summary": summary(runs),
@@ -108,7 +107,7 @@ def markdown(
         f"# {title}",
         "",
         f"Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']} on {env['platform']}.",
-        "Stopping rule: " + ", ".join(f"{k} = {v}" for k, v in dataclasses.asdict(settings).items()) + ".",
+        "Stopping rule: " + ", ".join(f"{k} = {v}" for k, v in settings.to_json().items()) + ".",
         "Times are solve times (the chordal initialization is shared and excluded), medians over the repeats; "
         "`*` marks a run that did not reach the best final cost of its instance to 1e-5 relative.",
         "",

@@ -15,8 +15,8 @@ import sys
 import numpy as np
 import pytest
 
-from manopt_lie.bench import peers
 from manopt_lie import SE2, SE3
+from manopt_lie.bench import peers
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
 from manopt_lie.problems import synthetic
 

@@ -3,7 +3,15 @@ import math
 import numpy as np
 import pytest
 
-from manopt_lie.bench.plots import PALETTE, color, convergence, convergence_plots, performance_profile, profile, trajectory
+from manopt_lie.bench.plots import (
+    PALETTE,
+    color,
+    convergence,
+    convergence_plots,
+    performance_profile,
+    profile,
+    trajectory,
+)
 from manopt_lie.bench.record import Run
 
 PNG = b"\x89PNG\r\n\x1a\n"

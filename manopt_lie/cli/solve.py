@@ -1,0 +1,113 @@
+"""``manopt-lie solve FILE.g2o``: read a g2o file as a problem of a chosen kind, initialize,
+solve with one optimizer, write the solution as g2o, plot, print a summary or JSON.
+
+The command knows problems only through the
+:class:`~manopt_lie.problems.graph.MeasurementGraph` interface and the kinds registry
+(:mod:`manopt_lie.problems.kinds`), and optimizers through the registry
+(:data:`manopt_lie.optim.OPTIMIZERS`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from manopt_lie.optim import OPTIMIZERS, get_optimizer
+from manopt_lie.problems import KINDS, MeasurementGraph, g2o, get_kind
+
+from . import _common
+
+COSTS = tuple(dict.fromkeys(c for kind in KINDS.values() for c in kind.graph.costs))
+
+
+def add_parser(commands: Any) -> None:
+    solve = commands.add_parser(
+        "solve", help="solve a g2o file",
+        description="Solve a g2o pose graph (or the rotation averaging of its rotations) and write the result.",
+    )  # fmt: skip
+    solve.add_argument("file", type=Path, metavar="FILE.g2o")
+    solve.add_argument("--problem", choices=tuple(KINDS), default=next(iter(KINDS)),
+                       help="; ".join(f"{k.name}: {k.summary}" for k in KINDS.values()) + " (default: %(default)s)")
+    solve.add_argument("--cost", choices=COSTS,
+                       help="geodesic: ½Σ rᵀΩr with r = Log(Z⁻¹Xᵢ⁻¹Xⱼ), GTSAM's error; chordal: SE-Sync's "
+                       "Frobenius-norm cost (default: geodesic for pose graphs, chordal for rotations)")
+    optimizers = "; ".join(f"{e.name}: {e.summary}" for e in OPTIMIZERS.values())
+    solve.add_argument("--optimizer", choices=tuple(OPTIMIZERS), default="tr",
+                       help=f"{optimizers} (default: %(default)s)")
+    solve.add_argument("--init", choices=MeasurementGraph.initializations, default="chordal",
+                       help="initial guess; 'file' takes the file's VERTEX poses (default: %(default)s)")
+    solve.add_argument("--robust", metavar="LOSS:SCALE", help="robust loss, e.g. huber:1.0, cauchy:0.5")
+    solve.add_argument("--out", type=Path, metavar="RESULT.g2o", help="write the solution as g2o")
+    solve.add_argument("--plot", type=Path, metavar="FIG.png",
+                       help="trajectories before/after (poses) or convergence (rotations)")
+    _common.add_stopping(solve, max_time=600.0)
+    _common.add_output(solve)
+    solve.set_defaults(run=run)  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> None:
+    if not args.file.is_file():
+        raise _common.UsageError(f"no such file: {args.file}")
+    graph = get_kind(args.problem).from_pose_graph(g2o.read(args.file))
+    cost = args.cost or graph.costs[0]
+    if cost not in graph.costs:
+        raise _common.UsageError(f"--cost {cost}: a {graph.kind} problem offers {', '.join(graph.costs)}")
+    start = time.perf_counter()
+    x0 = graph.initialize(args.init)
+    init_time = time.perf_counter() - start
+    problem = graph.problem(cost, robust=args.robust)
+    entry = get_optimizer(args.optimizer)
+    if not entry.accepts_problem(problem):
+        raise _common.UsageError(f"--optimizer {entry.name} needs a {entry.accepts.__name__}")
+    optimizer = entry.make(_common.stopping(args))
+    progress = _common.progress(args.quiet)
+    if progress is None:
+        result = optimizer.solve(problem, x0)
+    else:
+        with progress:
+            bar = progress.add_task(f"{args.optimizer} on {args.file.name}", total=args.max_iterations)
+
+            def show(info: Any) -> None:
+                progress.update(bar, completed=info.iteration, description=f"{args.optimizer}: cost {info.fun:.6g}")
+
+            result = optimizer.solve(problem, x0, callback=show)
+    summary = {
+        "file": str(args.file), "problem": graph.kind, "cost": cost, "optimizer": args.optimizer,
+        "robust": args.robust, "n": graph.n, "m": graph.m, "initial_fun": problem.cost(x0), "fun": result.fun,
+        "nit": result.nit, "time": result.time, "init_time": init_time, "status": result.status.name.lower(),
+        "converged": result.status.converged, "grad_norm": result.grad_norm, "message": result.message,
+    }  # fmt: skip
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        g2o.write(args.out, *graph.to_g2o(result.x))
+    if args.plot is not None:
+        _plot(args, graph, x0, result, summary)
+    if args.json:
+        print(json.dumps(summary, allow_nan=False))
+        return
+    print(
+        f"{args.file.name}: {graph.n} {graph.noun}, {graph.m} edges; "
+        f"{cost} cost {summary['initial_fun']:.8g} → {result.fun:.8g} by {args.optimizer} in {result.nit} "
+        f"iterations, {result.time:.3f} s (+ {init_time:.3f} s {args.init} initialization)\n"
+        f"status: {result.message}; ‖grad‖ = {result.grad_norm:.3g}"
+    )
+
+
+def _plot(args: argparse.Namespace, graph: MeasurementGraph, x0: Any, result: Any, summary: dict[str, Any]) -> None:
+    """Trajectories before and after where the variables have positions, else the convergence."""
+    from manopt_lie.bench import plots
+    from manopt_lie.bench.record import Run
+
+    before, after = graph.positions(x0), graph.positions(result.x)
+    if before is not None and after is not None:
+        title = f"{args.file.name}: {args.init} initialization → {args.optimizer} ({summary['cost']})"
+        plots.trajectory(before, after, graph.edges, args.plot, title)
+        return
+    run = Run(args.file.stem, graph.kind, summary["cost"], args.optimizer, graph.n, graph.m, result.nit,
+              result.time, summary["init_time"], result.fun, summary["status"], summary["converged"],
+              result.grad_norm, history_cost=result.history.cost.tolist(),
+              history_time=result.history.time.tolist())  # fmt: skip
+    plots.convergence([run], args.plot)
