@@ -22,7 +22,7 @@ from .lie import (
     sample,
 )
 
-__version__ = "0.1.0"
+__version__ = "0.2.0.dev0"
 
 __all__ = [
     "LieGroup",
