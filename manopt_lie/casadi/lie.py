@@ -8,35 +8,37 @@ order ``(ρ, θ)``, translation first. Every operation accepts ``SX``, ``MX`` or
 the same kind, so an expression can be differentiated with
 ``casadi.jacobian``/``casadi.hessian`` or compiled into a ``casadi.Function``.
 
-The formulas, thresholds and series are those of the numpy kernels
-(``manopt_lie.lie._so3`` and friends), written with ``casadi.if_else`` instead
-of ``np.where``; numbers agree with them to round-off. Each small-angle branch
-is selected on the *squared* angle, and the closed form is evaluated at a safe
-argument (``1``) wherever the series is selected, so no branch divides by zero
-or differentiates ``√t`` at ``t = 0``: values *and derivatives of every order*
-are finite at the identity.
+The formulas are the numpy kernels' (``lie._so3`` …); every small-angle
+coefficient is evaluated from their data, ``lie._series`` (the one source of
+thresholds, series and closed forms), on the :data:`CASADI` backend, agreeing
+with numpy to round-off. The coefficients (``sinc`` … ``atan_ratio``,
+``atan2_ratio``) are public functions of the *squared* angle ``t = θ²``: the
+branch is selected on ``t`` and the closed form sees a safe argument (``1``)
+where the series is selected, so no branch divides by zero or differentiates
+``√t`` at ``t = 0``: values *and derivatives of every order* are finite at 0.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from math import factorial
 from typing import Any, ClassVar, TypeAlias
 
 import casadi as ca
 import numpy as np
 
 from ..errors import ShapeError
-from ..lie import SE2, SE3, SO2, SO3, LieGroup
+from ..lie import SE2, SE3, SO2, SO3, LieGroup, _series
+from ..lie._series import Backend
 
-__all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix"]
+__all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix", "CASADI", "horner"]
+# The coefficient functions of ``lie._series``, on CasADi matrices.
+__all__ += ["sinc", "cosc", "sinc3", "jinv_coef", "q_coef2", "q_coef3", "half_cot", "sinc_half", "cos_half"]
+__all__ += ["atan_ratio", "atan2_ratio"]
 
 # A CasADi SX, MX or DM matrix. Typed ``Any``: casadi's stubs do not type arithmetic across the three.
 Matrix: TypeAlias = Any
 _CASADI = (ca.SX, ca.MX, ca.DM)
-_TERMS = range(6)
-# Bernoulli numbers B₂ … B₁₂, for the series of x·cot(x) (as in ``lie._series``).
-_BERNOULLI = (1 / 6, -1 / 30, 1 / 42, -1 / 30, 5 / 66, -691 / 2730)
+#: The CasADi backend of ``lie._series``: closed forms on CasADi matrices, ``where`` = ``if_else``.
+CASADI = Backend(ca.sin, ca.cos, ca.sqrt, ca.atan, ca.atan2, ca.fmax, ca.if_else)
 
 
 def _matrix(a: Any, name: str) -> Matrix:
@@ -66,46 +68,24 @@ def _square(m: Any, k: int, name: str) -> Matrix:
 
 # ---- coefficient functions of the angle (``lie._series``), stable at 0 --------------------
 
-
-def _blend(
-    t: Matrix, threshold: float, coefficients: Sequence[float], closed: Callable[[Matrix], Matrix], theta: Any = None
-) -> Matrix:
-    """``Σ_j c_j t^j`` (Horner, ``t = θ²``) where ``θ < threshold``, else ``closed(θ)``.
-
-    ``theta`` is the angle the closed form takes (any sign: the closed forms
-    are even); by default ``√t``. In the series branch the closed form sees
-    ``θ = 1``, so neither it nor its derivatives are ever singular.
-    """
-    small = t < threshold * threshold
-    series = ca.DM(coefficients[-1])
-    for c in coefficients[-2::-1]:
-        series = series * t + c
-    safe = ca.sqrt(ca.if_else(small, 1.0, t)) if theta is None else ca.if_else(small, 1.0, theta)
-    return ca.if_else(small, series, closed(safe))
+horner = _series.horner
+sinc = _series.bind(_series.SINC, CASADI)
+cosc = _series.bind(_series.COSC, CASADI)
+sinc3 = _series.bind(_series.SINC3, CASADI)
+jinv_coef = _series.bind(_series.JINV_COEF, CASADI)
+q_coef2 = _series.bind(_series.Q_COEF2, CASADI)
+q_coef3 = _series.bind(_series.Q_COEF3, CASADI)
+half_cot = _series.bind(_series.HALF_COT, CASADI)
+sinc_half = _series.bind(_series.SINC_HALF, CASADI)
+cos_half = _series.bind(_series.COS_HALF, CASADI)
+atan_ratio = _series.bind(_series.ATAN_RATIO, CASADI)
 
 
-def sinc(t: Matrix, theta: Any = None) -> Matrix:
-    """``sin θ / θ`` of ``t = θ²``."""
-    return _blend(t, 0.3, [(-1) ** j / factorial(2 * j + 1) for j in _TERMS], lambda th: ca.sin(th) / th, theta)
-
-
-def cosc(t: Matrix, theta: Any = None) -> Matrix:
-    """``(1 − cos θ) / θ² = 2 sin²(θ/2) / θ²`` of ``t = θ²``."""
-    coefficients = [(-1) ** j / factorial(2 * j + 2) for j in _TERMS]
-    return _blend(t, 0.3, coefficients, lambda th: 2.0 * (ca.sin(0.5 * th) / th) ** 2, theta)
-
-
-def sinc3(t: Matrix, theta: Any = None) -> Matrix:
-    """``(θ − sin θ) / θ³`` of ``t = θ²``."""
-    coefficients = [(-1) ** j / factorial(2 * j + 3) for j in _TERMS]
-    return _blend(t, 0.5, coefficients, lambda th: (th - ca.sin(th)) / th**3, theta)
-
-
-def jinv_coef(t: Matrix, theta: Any = None) -> Matrix:
-    """``1/θ² − cot(θ/2)/(2θ)`` of ``t = θ²``: the ``[θ]×²`` coefficient of ``Jr(θ)⁻¹``."""
-    coefficients = [(-1) ** j * _BERNOULLI[j] / factorial(2 * j + 2) for j in _TERMS]
-    closed = lambda th: 1.0 / th**2 - ca.cos(0.5 * th) / (2.0 * th * ca.sin(0.5 * th))
-    return _blend(t, 0.3, coefficients, closed, theta)
+def atan2_ratio(s2: Matrix, c: Matrix) -> Matrix:
+    """``atan2(s, c) / s``, ``s = √s2 ≥ 0``, any sign of ``c``: ``atan_ratio(s/c)/c`` (series) where ``c > 0``
+    and ``s/c < 1e-3``, else ``atan2(s, c)/s`` with ``s ≥ 1e-150`` (``lie._series.atan2_ratio``). Of a unit
+    quaternion ``(v, w)``, ``2·atan2_ratio(|v|², w)·v`` is the rotation vector."""
+    return _series.atan2_ratio(s2, c, CASADI)
 
 
 # ---- the groups -----------------------------------------------------------------------------
@@ -275,31 +255,13 @@ class SymSO2(_SymRotation):
         return ca.DM.ones(1, 1)
 
 
-def _skew(w: Matrix) -> Matrix:
-    """``[w]×``."""
-    return ca.vertcat(
-        ca.horzcat(0, -w[2], w[1]),
-        ca.horzcat(w[2], 0, -w[0]),
-        ca.horzcat(-w[1], w[0], 0),
-    )
-
-
-def _unskew(m: Matrix) -> Matrix:
-    """``vee`` of the skew part ``(M − Mᵀ)/2``."""
-    return 0.5 * ca.vertcat(m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1])
-
-
 def _so3_exp(w: Matrix) -> Matrix:
     """Rodrigues with the half-angle coefficients of ``lie._so3.exp``:
     ``Exp(w) = (1 − b t) I + b w wᵀ + a [w]×``, ``r = sin(θ/2)/θ``, ``a = 2r cos(θ/2)``, ``b = 2r²``."""
     t = ca.sumsqr(w)
-    small = t < 1e-8  # θ < 1e-4: the next series terms are ~1e-20
-    theta = ca.sqrt(ca.if_else(small, 1.0, t))
-    r = ca.if_else(small, 0.5 - t / 48.0, ca.sin(0.5 * theta) / theta)
-    cos_half = ca.if_else(small, 1.0 - t / 8.0 + t * t / 384.0, ca.cos(0.5 * theta))
-    a = 2.0 * r * cos_half
-    b = 2.0 * r * r
-    return (1.0 - b * t) * ca.DM.eye(3) + b * ca.mtimes(w, w.T) + a * _skew(w)
+    r = sinc_half(t)
+    a, b = 2.0 * r * cos_half(t), 2.0 * r * r
+    return (1.0 - b * t) * ca.DM.eye(3) + b * ca.mtimes(w, w.T) + a * ca.skew(w)
 
 
 def _so3_quaternion(r: Matrix) -> Matrix:
@@ -328,16 +290,9 @@ def _so3_quaternion(r: Matrix) -> Matrix:
 
 
 def _so3_log(r: Matrix) -> Matrix:
-    """``θu`` with ``θ = 2 atan2(|v|, w) ∈ [0, π]`` of the quaternion ``(v, w)`` of ``R``;
-    ``θ/|v| → 2/w (1 − |v|²/(3w²))`` below ``|v| = 1e-8``."""
+    """``θu = 2 atan2(|v|, w)/|v| · v``, ``θ ∈ [0, π]``, of the quaternion ``(v, w)``, ``w ≥ 0``, of ``R``."""
     q = _so3_quaternion(r)
-    v, w = q[:3], q[3]
-    s2 = ca.sumsqr(v)
-    small = s2 < 1e-16
-    ws = ca.if_else(small, w, 1.0)
-    s = ca.sqrt(ca.if_else(small, 1.0, s2))
-    ratio = ca.if_else(small, 2.0 / ws * (1.0 - s2 / (3.0 * ws * ws)), 2.0 * ca.atan2(s, w) / s)
-    return ratio * v
+    return 2.0 * atan2_ratio(ca.sumsqr(q[:3]), q[3]) * q[:3]
 
 
 class SymSO3(_SymRotation):
@@ -364,11 +319,11 @@ class SymSO3(_SymRotation):
     @classmethod
     def hat(cls, tau: Any) -> Matrix:
         """``[w]× = [[0, −w₃, w₂], [w₃, 0, −w₁], [−w₂, w₁, 0]]``."""
-        return _skew(cls._tangent(tau))
+        return ca.skew(cls._tangent(tau))
 
     @classmethod
     def vee(cls, m: Any) -> Matrix:
-        return _unskew(_square(m, 3, "M"))
+        return ca.inv_skew(_square(m, 3, "M"))
 
     @classmethod
     def adjoint(cls, x: Any) -> Matrix:
@@ -458,7 +413,7 @@ class SymSE2(_SymTransform):
         """``(V(θ)⁻¹ t, θ)``, ``V⁻¹ = [[a, b], [−b, a]]``, ``a = (θ/2) cot(θ/2)``, ``b = θ/2``."""
         r, t = cls._split(x)
         theta = SymSO2.log(r)
-        a = 1.0 - theta * theta * jinv_coef(theta * theta, theta)
+        a = half_cot(theta * theta, theta)
         b = 0.5 * theta
         return ca.vertcat(a * t[0] + b * t[1], a * t[1] - b * t[0], theta)
 
@@ -512,18 +467,18 @@ class SymSE3(_SymTransform):
     def hat(cls, tau: Any) -> Matrix:
         """``[[θ^, ρ], [0, 0]]``."""
         tau = cls._tangent(tau)
-        return ca.vertcat(ca.horzcat(_skew(tau[3:]), tau[:3]), ca.DM.zeros(1, 4))
+        return ca.vertcat(ca.horzcat(ca.skew(tau[3:]), tau[:3]), ca.DM.zeros(1, 4))
 
     @classmethod
     def vee(cls, m: Any) -> Matrix:
         a = _square(m, 4, "M")
-        return ca.vertcat(a[:3, 3], _unskew(a[:3, :3]))
+        return ca.vertcat(a[:3, 3], ca.inv_skew(a[:3, :3]))
 
     @classmethod
     def adjoint(cls, x: Any) -> Matrix:
         """``[[R, [t]× R], [0, R]]``."""
         r, t = cls._split(x)
-        top = ca.horzcat(r, ca.mtimes(_skew(t), r))
+        top = ca.horzcat(r, ca.mtimes(ca.skew(t), r))
         return ca.vertcat(top, ca.horzcat(ca.DM.zeros(3, 3), r))
 
 

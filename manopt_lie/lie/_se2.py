@@ -25,12 +25,13 @@ def vee(m: FloatArray) -> FloatArray:
 
 def _v_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``(sin θ/θ, (1 − cos θ)/θ)``: ``V(θ) = [[a, −b], [b, a]]``."""
-    return _series.sinc(np.abs(theta)), theta * _series.cosc(np.abs(theta))
+    ang = np.abs(theta)  # contiguous: ``theta`` is often a strided view of the tangents
+    return _series.sinc(ang), theta * _series.cosc(ang)
 
 
 def _v_inverse_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``((θ/2) cot(θ/2), θ/2)``: ``V(θ)⁻¹ = [[a, b], [−b, a]]``."""
-    return 1.0 - theta * theta * _series.jinv_coef(np.abs(theta)), 0.5 * theta
+    return _series.half_cot(np.abs(theta)), 0.5 * theta
 
 
 def exp(tau: FloatArray) -> FloatArray:

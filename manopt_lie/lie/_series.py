@@ -1,54 +1,277 @@
-"""Scalar coefficient functions of the rotation angle, stable at and near 0.
+"""Scalar coefficient functions of the rotation angle, stable at and near 0: the one source.
 
-Each function takes the angle ``θ ≥ 0`` as an array and returns its closed form
-above a threshold and its Taylor series in ``t = θ²`` (six terms) below, chosen
-elementwise with ``np.where`` on a safe denominator, so no branch ever divides
-by zero. Each threshold balances the closed form's cancellation against the
-series' truncation: against 60-digit references the largest relative error is
-below 1e-13 for every function and angle in ``[0, 2π)``.
+Every ``0/0``-at-zero coefficient of the Lie-group formulas is *data*, a
+:class:`Coefficient`: a threshold on the angle ``θ``, the Taylor coefficients
+``c_j`` of its series in ``t = θ²``, and its closed form, written once against a
+small :class:`Backend` namespace (``sin``, ``cos``, ``sqrt``, ``atan``,
+``atan2``, ``fmax``, ``where``). One evaluator, :func:`evaluate`, serves every
+backend::
+
+    f(t) = Σ_j c_j t^j           where t < threshold²   (Horner)
+           closed(θ)             elsewhere, the closed form seeing θ = 1 in the series branch
+
+selecting on the *squared* angle, so that the closed form never sees a small
+argument: no branch divides by zero, and on a symbolic backend (CasADi,
+``manopt_lie.casadi.lie``) derivatives of every order are finite at ``t = 0``.
+The NumPy backend :data:`NUMPY` serves the array kernels through the functions
+of ``θ`` below (:func:`sinc`, …). Both backends pick the same branch for the
+same angle: for ``θ ≥ 0`` in binary floating point, ``fl(θ²) < fl(thr²)`` exactly
+when ``θ < thr`` (because ``√fl(x²) = x``). Every closed form is even in ``θ``,
+so the angle may carry a sign.
+
+Each threshold balances the closed form's cancellation against the series'
+truncation: against exact references the largest relative error is below
+1e-13 for every function and angle in ``[0, 2π)``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from math import factorial
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ._checks import FloatArray
 
-_TERMS = range(6)
+__all__ = [
+    "Backend",
+    "Coefficient",
+    "NUMPY",
+    "COEFFICIENTS",
+    "horner",
+    "evaluate",
+    "bind",
+    "atan2_ratio",
+    "sinc",
+    "cosc",
+    "sinc3",
+    "jinv_coef",
+    "q_coef2",
+    "q_coef3",
+    "half_cot",
+    "sinc_half",
+    "atan_ratio",
+]
+
+
+class Backend(NamedTuple):
+    """The elementary functions a closed form may use; ``where(cond, a, b)`` selects elementwise."""
+
+    sin: Callable[[Any], Any]
+    cos: Callable[[Any], Any]
+    sqrt: Callable[[Any], Any]
+    atan: Callable[[Any], Any]
+    atan2: Callable[[Any, Any], Any]
+    fmax: Callable[[Any, Any], Any]
+    where: Callable[[Any, Any, Any], Any]
+
+
+NUMPY = Backend(np.sin, np.cos, np.sqrt, np.arctan, np.arctan2, np.fmax, np.where)
+
+
+@dataclass(frozen=True)
+class Coefficient:
+    """A coefficient function ``f(θ)``, even in ``θ``, as data.
+
+    Attributes
+    ----------
+    name : str
+        The public name (``"sinc"``), shared by the NumPy and CasADi functions.
+    formula : str
+        The closed form, for documentation.
+    threshold : float
+        The series is used for ``|θ| < threshold``, i.e. ``t = θ² < threshold²``.
+    series : tuple of float
+        ``c_0, c_1, …``: ``f = Σ_j c_j t^j`` near 0 (at least two terms).
+    closed : callable
+        ``closed(backend, θ)``, the closed form, evaluated only away from 0.
+    """
+
+    name: str
+    formula: str
+    threshold: float
+    series: tuple[float, ...]
+    closed: Callable[[Backend, Any], Any] = field(repr=False)
+    threshold2: float = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if len(self.series) < 2:
+            raise ValueError(f"{self.name}: a series needs at least two coefficients")
+        object.__setattr__(self, "threshold2", self.threshold * self.threshold)
+
+
+def horner(t: Any, coefficients: tuple[float, ...]) -> Any:
+    """``Σ_k c_k t^k`` by Horner's rule (``t`` an array or a CasADi matrix; two or more coefficients).
+
+    Updates in place where the type allows (NumPy arrays: no temporaries); ``out`` is always new.
+    """
+    out = coefficients[-1] * t
+    out += coefficients[-2]
+    for c in coefficients[-3::-1]:
+        out *= t
+        out += c
+    return out
+
+
+def evaluate(coef: Coefficient, t: Any, theta: Any = None, backend: Backend = NUMPY) -> Any:
+    """``coef`` at ``t = θ²``: its series where ``t < threshold²``, else its closed form.
+
+    Parameters
+    ----------
+    coef
+        The coefficient.
+    t
+        The squared angle ``θ² ≥ 0``.
+    theta
+        The angle itself (either sign), passed to the closed form; by default ``√t``.
+    backend
+        :data:`NUMPY` or a symbolic backend (``manopt_lie.casadi.lie.CASADI``).
+    """
+    small = t < coef.threshold2
+    safe = backend.sqrt(backend.where(small, 1.0, t)) if theta is None else backend.where(small, 1.0, theta)
+    return backend.where(small, horner(t, coef.series), coef.closed(backend, safe))
+
+
+def bind(coef: Coefficient, backend: Backend) -> Callable[..., Any]:
+    """``f(t, theta=None)``: ``coef`` as a function of ``t = θ²`` on ``backend``, named and documented."""
+
+    def f(t: Any, theta: Any = None) -> Any:
+        return evaluate(coef, t, theta, backend)
+
+    f.__name__ = f.__qualname__ = coef.name
+    f.__doc__ = f"""``{coef.formula}``, as a function of ``t = θ²``.
+
+    ``Σ_j c_j t^j`` ({len(coef.series)} terms) where ``t < {coef.threshold:g}²``, else the closed form at
+    ``θ`` (by default ``√t``; pass ``theta``, of either sign, to skip the square root), which sees
+    ``θ = 1`` in the series branch: values and derivatives of every order are finite at ``t = 0``.
+    """
+    return f
+
+
+def _taylor(term: Callable[[int], float], n: int = 6) -> tuple[float, ...]:
+    return tuple(term(j) for j in range(n))
+
+
 # Bernoulli numbers B₂, B₄, …, B₁₂ for the series of x·cot(x).
 _BERNOULLI = (1 / 6, -1 / 30, 1 / 42, -1 / 30, 5 / 66, -691 / 2730)
+_COT_SERIES = _taylor(lambda j: (-1) ** j * _BERNOULLI[j] / factorial(2 * j + 2))
+
+SINC = Coefficient(
+    "sinc", "sin θ / θ", 0.3, _taylor(lambda j: (-1) ** j / factorial(2 * j + 1)), lambda b, x: b.sin(x) / x
+)
+COSC = Coefficient(
+    "cosc",
+    "(1 − cos θ) / θ², as 2 sin²(θ/2) / θ² (no cancellation)",
+    0.3,
+    _taylor(lambda j: (-1) ** j / factorial(2 * j + 2)),
+    lambda b, x: 2.0 * (b.sin(0.5 * x) / x) ** 2,
+)
+SINC3 = Coefficient(
+    "sinc3",
+    "(θ − sin θ) / θ³",
+    0.5,
+    _taylor(lambda j: (-1) ** j / factorial(2 * j + 3)),
+    lambda b, x: (x - b.sin(x)) / x**3,
+)
+JINV_COEF = Coefficient(
+    "jinv_coef",
+    "1/θ² − (1 + cos θ)/(2θ sin θ) = 1/θ² − cot(θ/2)/(2θ), the [θ]×² coefficient of Jr(θ)⁻¹; finite on [0, 2π)",
+    0.3,
+    _COT_SERIES,
+    lambda b, x: 1.0 / x**2 - b.cos(0.5 * x) / (2.0 * x * b.sin(0.5 * x)),
+)
+Q_COEF2 = Coefficient(
+    "q_coef2",
+    "(θ² + 2 cos θ − 2) / (2θ⁴), c₂ of Barfoot's Q(ρ, θ)",
+    0.7,
+    _taylor(lambda j: (-1) ** j / factorial(2 * j + 4)),
+    lambda b, x: (x * x + 2.0 * b.cos(x) - 2.0) / (2.0 * x**4),
+)
+Q_COEF3 = Coefficient(
+    "q_coef3",
+    "(2θ − 3 sin θ + θ cos θ) / (2θ⁵), c₃ of Barfoot's Q(ρ, θ)",
+    0.7,
+    _taylor(lambda j: (-1) ** j * (j + 1) / factorial(2 * j + 5)),
+    lambda b, x: (2.0 * x - 3.0 * b.sin(x) + x * b.cos(x)) / (2.0 * x**5),
+)
+HALF_COT = Coefficient(
+    "half_cot",
+    "(θ/2) cot(θ/2) = 1 − θ² jinv_coef(θ), the diagonal of SE(2)'s V(θ)⁻¹; finite on [0, 2π), 0 at π",
+    0.3,
+    (1.0, *(-c for c in _COT_SERIES)),
+    lambda b, x: 0.5 * x * b.cos(0.5 * x) / b.sin(0.5 * x),
+)
+SINC_HALF = Coefficient(
+    "sinc_half",
+    "sin(θ/2) / θ = ½ sinc(θ/2), the half-angle coefficient of SO(3) Exp",
+    1e-4,  # no cancellation: the series is needed only at 0 (and for symbolic derivatives)
+    _taylor(lambda j: (-1) ** j / (factorial(2 * j + 1) * 2 ** (2 * j + 1)), 3),
+    lambda b, x: b.sin(0.5 * x) / x,
+)
+COS_HALF = Coefficient(
+    "cos_half",
+    "cos(θ/2) as a function of θ² (symbolic SO(3) Exp; in NumPy plain cos(θ/2) is exact)",
+    1e-4,
+    _taylor(lambda j: (-1) ** j / (factorial(2 * j) * 4**j), 3),
+    lambda b, x: b.cos(0.5 * x),
+)
+ATAN_RATIO = Coefficient(
+    "atan_ratio",
+    "atan(x) / x, of t = x²; atan2(s, c)/s = atan_ratio(s/c)/c for c > 0 (see atan2_ratio)",
+    1e-3,  # no cancellation: three terms reach 1e-19 below the threshold
+    _taylor(lambda j: (-1) ** j / (2 * j + 1), 3),
+    lambda b, x: b.atan(x) / x,
+)
+
+COEFFICIENTS: tuple[Coefficient, ...] = (
+    SINC,
+    COSC,
+    SINC3,
+    JINV_COEF,
+    Q_COEF2,
+    Q_COEF3,
+    HALF_COT,
+    SINC_HALF,
+    COS_HALF,
+    ATAN_RATIO,
+)
 
 
-def _blend(
-    theta: FloatArray, threshold: float, coefficients: list[float], closed: Callable[[FloatArray], FloatArray]
-) -> FloatArray:
-    """``Σ_j c_j θ^{2j}`` (Horner) where ``θ < threshold``, else ``closed(θ)``."""
-    small = theta < threshold
-    t = theta * theta
-    series = np.full_like(t, coefficients[-1])
-    for c in coefficients[-2::-1]:
-        series = series * t + c
-    return np.where(small, series, closed(np.where(small, 1.0, theta)))
+def atan2_ratio(s2: Any, c: Any, backend: Backend = NUMPY) -> Any:
+    """``atan2(s, c) / s`` with ``s = √s2 ≥ 0``, any sign of ``c``.
+
+    Where ``c > 0`` and ``x² = s2/c² < threshold²`` of :data:`ATAN_RATIO` (tested as
+    ``s2 < threshold²·c·|c|``), the series ``atan_ratio(x)/c = (1 − x²/3 + x⁴/5)/c``;
+    elsewhere ``atan2(s, c)/s`` with ``s ≥ 1e-150``. With ``a = sin θ·u`` and
+    ``c ∝ cos θ`` (a quaternion's ``(v, w)``, or the skew part and ``(tr R − 1)/2``
+    of a rotation matrix), ``ratio·a`` is the rotation vector (up to the factor 2
+    for quaternions).
+    """
+    small = s2 < ATAN_RATIO.threshold2 * c * abs(c)
+    cs = backend.where(small, c, 1.0)
+    series = horner(s2 / (cs * cs), ATAN_RATIO.series) / cs
+    s = backend.sqrt(backend.where(small, 1.0, backend.fmax(s2, 1e-300)))
+    return backend.where(small, series, backend.atan2(s, c) / s)
+
+
+# ---- the NumPy functions of the angle θ (either sign) that the kernels call ----------------
 
 
 def sinc(theta: FloatArray) -> FloatArray:
     """``sin θ / θ``."""
-    return _blend(theta, 0.3, [(-1) ** j / factorial(2 * j + 1) for j in _TERMS], lambda th: np.sin(th) / th)
+    return evaluate(SINC, theta * theta, theta)
 
 
 def cosc(theta: FloatArray) -> FloatArray:
     """``(1 − cos θ) / θ²``, written ``2 sin²(θ/2) / θ²`` to avoid cancellation."""
-    return _blend(
-        theta, 0.3, [(-1) ** j / factorial(2 * j + 2) for j in _TERMS], lambda th: 2.0 * (np.sin(0.5 * th) / th) ** 2
-    )
+    return evaluate(COSC, theta * theta, theta)
 
 
 def sinc3(theta: FloatArray) -> FloatArray:
     """``(θ − sin θ) / θ³``."""
-    return _blend(theta, 0.5, [(-1) ** j / factorial(2 * j + 3) for j in _TERMS], lambda th: (th - np.sin(th)) / th**3)
+    return evaluate(SINC3, theta * theta, theta)
 
 
 def jinv_coef(theta: FloatArray) -> FloatArray:
@@ -57,29 +280,32 @@ def jinv_coef(theta: FloatArray) -> FloatArray:
     The coefficient of ``[θ]×²`` in ``Jr(θ)⁻¹``; finite up to (excluding) ``2π``
     and exact at ``π``, being written with ``cot(θ/2)``.
     """
-    return _blend(
-        theta,
-        0.3,
-        [(-1) ** j * _BERNOULLI[j] / factorial(2 * j + 2) for j in _TERMS],
-        lambda th: 1.0 / th**2 - np.cos(0.5 * th) / (2.0 * th * np.sin(0.5 * th)),
-    )
+    return evaluate(JINV_COEF, theta * theta, theta)
 
 
 def q_coef2(theta: FloatArray) -> FloatArray:
     """``(θ² + 2 cos θ − 2) / (2θ⁴)`` of Barfoot's ``Q(ρ, θ)``."""
-    return _blend(
-        theta,
-        0.7,
-        [(-1) ** j / factorial(2 * j + 4) for j in _TERMS],
-        lambda th: (th * th + 2.0 * np.cos(th) - 2.0) / (2.0 * th**4),
-    )
+    return evaluate(Q_COEF2, theta * theta, theta)
 
 
 def q_coef3(theta: FloatArray) -> FloatArray:
     """``(2θ − 3 sin θ + θ cos θ) / (2θ⁵)`` of Barfoot's ``Q(ρ, θ)``."""
-    return _blend(
-        theta,
-        0.7,
-        [(-1) ** j * (j + 1) / factorial(2 * j + 5) for j in _TERMS],
-        lambda th: (2.0 * th - 3.0 * np.sin(th) + th * np.cos(th)) / (2.0 * th**5),
-    )
+    return evaluate(Q_COEF3, theta * theta, theta)
+
+
+def half_cot(theta: FloatArray) -> FloatArray:
+    """``(θ/2) cot(θ/2) = 1 − θ² jinv_coef(θ)``, the diagonal of SE(2)'s ``V(θ)⁻¹``.
+
+    Accurate relative to its value everywhere on ``(−2π, 2π)``, including its zero at ``±π``.
+    """
+    return evaluate(HALF_COT, theta * theta, theta)
+
+
+def sinc_half(theta: FloatArray) -> FloatArray:
+    """``sin(θ/2) / θ``."""
+    return evaluate(SINC_HALF, theta * theta, theta)
+
+
+def atan_ratio(x: FloatArray) -> FloatArray:
+    """``atan(x) / x``."""
+    return evaluate(ATAN_RATIO, x * x, x)

@@ -38,9 +38,9 @@ def exp(w: FloatArray) -> FloatArray:
     """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×``.
 
     All coefficients come from one ``sin``/``cos`` pair of ``θ/2``:
-    ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``,
-    which has no cancellation, so its series ``½ − θ²/48`` is needed only below
-    ``θ = 1e-4`` (where the next term is ~1e-20).
+    ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``
+    (:data:`_series.SINC_HALF`), which has no cancellation, so its series
+    ``½ − θ²/48 + θ⁴/3840`` is needed only below ``θ = 1e-4``.
     """
     flat = w.reshape(-1, 3)  # 1-D components, so the in-place updates below have arrays to update
     x, y, z = flat[:, 0], flat[:, 1], flat[:, 2]
@@ -48,10 +48,8 @@ def exp(w: FloatArray) -> FloatArray:
     t += y * y
     t += z * z
     theta = np.sqrt(t)
-    half = 0.5 * theta
-    r = 0.5 - t / 48.0
-    np.divide(np.sin(half), theta, out=r, where=theta >= 1e-4)
-    a = np.cos(half)
+    r = _series.evaluate(_series.SINC_HALF, t, theta)
+    a = np.cos(0.5 * theta)
     a *= 2.0 * r
     b = 2.0 * r * r
     c = 1.0 - b * t
@@ -112,14 +110,13 @@ def from_quaternion(q: FloatArray) -> FloatArray:
 
 
 def quaternion_log(q: FloatArray) -> FloatArray:
-    """``θu`` of a unit quaternion with ``w ≥ 0``: ``θ = 2 atan2(|v|, w) ∈ [0, π]``."""
+    """``θu`` of a unit quaternion with ``w ≥ 0``: ``θu = 2 atan2(|v|, w)/|v| · v``, ``θ ∈ [0, π]``.
+
+    The ratio is :func:`_series.atan2_ratio`, a series in ``|v|²/w²`` near the identity.
+    """
     v, w = q[..., :3], q[..., 3]
-    s = _norm(v)
-    # θ/|v| → 2/w (1 − |v|²/(3w²)) as |v| → 0, where w → 1 (and w = 0 only far from there).
-    small = s < 1e-8
-    ws = np.where(small, w, 1.0)
-    series = 2.0 / ws * (1.0 - s * s / (3.0 * ws * ws))
-    ratio = np.where(small, series, 2.0 * np.arctan2(s, w) / np.where(small, 1.0, s))
+    ratio = _series.atan2_ratio(np.einsum("...i,...i->...", v, v), w)
+    ratio *= 2.0
     return ratio[..., None] * v
 
 

@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 
 from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn, ShapeError
 from manopt_lie.casadi import SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
+from manopt_lie.casadi import lie as casadi_lie
+from manopt_lie.lie import _series
 
 TWINS = [SymSO2, SymSO3, SymSE2, SymSE3]
 twins = pytest.mark.parametrize("sym", TWINS, ids=lambda s: s.__name__)
@@ -215,3 +217,78 @@ def test_twin_lookup_and_bad_input():
         SymSE2.act(SymSE2.identity(), [1.0, 2.0, 3.0])
     with pytest.raises(TypeError, match="CasADi"):
         SymSO3.log("R")
+
+
+# ---- the coefficient functions: one source (``lie._series``), two backends ------------------
+
+COEFFICIENTS = pytest.mark.parametrize("coef", _series.COEFFICIENTS, ids=lambda c: c.name)
+
+
+def angle_grid(coef: _series.Coefficient) -> np.ndarray:
+    """Both branches: 0, tiny angles (θ² denormal or zero), every threshold ± 1 ulp, π, and
+    up to just below 2π (just below the singularity at 2π for jinv_coef and half_cot)."""
+    thresholds = np.array([c.threshold for c in _series.COEFFICIENTS])
+    top = 2 * np.pi - (1e-6 if coef.name in ("jinv_coef", "half_cot") else 4e-16)
+    special = [0.0, 5e-324, 1e-300, 1e-160, 1e-20, 1e-8, np.pi, 2 * np.pi - 1e-3, top]
+    edges = np.concatenate([thresholds, np.nextafter(thresholds, 0), np.nextafter(thresholds, 1)])
+    return np.unique(np.concatenate([special, edges, np.linspace(0.0, top, 301)]))
+
+
+def symbolic_values(coef: _series.Coefficient, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The exported CasADi function at ``t = θ²``, without and with the angle (mapped SX functions)."""
+    f = getattr(casadi_lie, coef.name)
+    t, a = ca.SX.sym("t"), ca.SX.sym("a")
+    of_t = ca.Function("f", [t], [f(t)]).map(theta.size)
+    of_t_theta = ca.Function("g", [t, a], [f(t, a)]).map(theta.size)
+    return np.array(of_t(theta * theta)).ravel(), np.array(of_t_theta(theta * theta, theta)).ravel()
+
+
+@COEFFICIENTS
+def test_numpy_and_casadi_coefficients_agree(coef):
+    """The numpy kernels' and the CasADi evaluations of the same data agree to 1e-14 relative,
+    on both branches and at the switch (both select on θ², so they pick the same branch)."""
+    theta = angle_grid(coef)
+    numpy = _series.evaluate(coef, theta * theta, theta)
+    assert np.isfinite(numpy).all()
+    for sym in symbolic_values(coef, theta):
+        np.testing.assert_allclose(sym, numpy, rtol=1e-14, atol=1e-300)
+    # The signed angle: every closed form is even.
+    np.testing.assert_allclose(symbolic_values(coef, -theta)[1], numpy, rtol=1e-14, atol=1e-300)
+
+
+@COEFFICIENTS
+def test_casadi_coefficient_derivatives_are_finite_and_exact_at_zero(coef):
+    """``f'(0) = c₁`` and ``f''(0) = 2c₂`` through ``ca.jacobian``/``ca.hessian`` in ``t``, and
+    ``d²f(θ², θ)/dθ² = 2c₁`` at ``θ = 0``; finite on both sides of the threshold."""
+    f = getattr(casadi_lie, coef.name)
+    t, a = ca.SX.sym("t"), ca.SX.sym("a")
+    d1 = ca.Function("d", [t], [ca.jacobian(f(t), t), ca.hessian(f(t), t)[0]])
+    d_theta = ca.Function("e", [a], [ca.jacobian(f(a * a, a), a), ca.hessian(f(a * a, a), a)[0]])
+    j0, h0 = (float(v) for v in d1(0.0))
+    assert j0 == pytest.approx(coef.series[1], rel=1e-15)
+    assert h0 == pytest.approx(2.0 * coef.series[2], rel=1e-15)
+    j0, h0 = (float(v) for v in d_theta(0.0))
+    assert j0 == 0.0 and h0 == pytest.approx(2.0 * coef.series[1], rel=1e-15)
+    for t0 in (coef.threshold2, np.nextafter(coef.threshold2, 0), 0.25, 4.0):
+        assert np.isfinite([float(v) for v in d1(t0)]).all()
+    # First derivatives match across the switch (the series is the closed form's Taylor series).
+    below, above = (float(d1(x)[0]) for x in (np.nextafter(coef.threshold2, 0), coef.threshold2))
+    assert below == pytest.approx(above, rel=1e-6)
+
+
+def test_numpy_and_casadi_atan2_ratio_agree():
+    """``atan2(s, c)/s`` at quaternion-like ``(|v|, w)`` and matrix-like ``(sin θ, cos θ)`` pairs,
+    on both sides of the series switch ``s/c = 1e-3``, for ``c`` of either sign and at ``s = 0``."""
+    phi = np.concatenate([np.linspace(0.0, np.pi, 181), [1e-12, np.pi / 2, np.pi - 1e-9]])
+    ratios = np.array([1e-3, np.nextafter(1e-3, 0), np.nextafter(1e-3, 1), 1e-8])
+    s = np.concatenate([np.sin(phi), ratios / np.hypot(1.0, ratios), [0.0, 0.0]])
+    c = np.concatenate([np.cos(phi), 1.0 / np.hypot(1.0, ratios), [-1.0, 0.0]])
+    numpy = _series.atan2_ratio(s * s, c)
+    s2, w = ca.SX.sym("s2"), ca.SX.sym("w")
+    sym = np.array(ca.Function("r", [s2, w], [casadi_lie.atan2_ratio(s2, w)]).map(s.size)(s * s, c)).ravel()
+    assert np.isfinite(numpy).all()
+    np.testing.assert_allclose(sym, numpy, rtol=1e-14, atol=0)
+    grad = ca.Function("g", [s2, w], [ca.jacobian(casadi_lie.atan2_ratio(s2, w), ca.vertcat(s2, w))])
+    hess = ca.Function("h", [s2, w], [ca.hessian(casadi_lie.atan2_ratio(s2, w), ca.vertcat(s2, w))[0]])
+    np.testing.assert_allclose(np.array(grad(0.0, 1.0)).ravel(), [-1.0 / 3.0, -1.0], rtol=1e-15)
+    assert np.isfinite(np.array(hess(0.0, 1.0))).all()

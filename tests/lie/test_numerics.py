@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+from math import comb, factorial
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -41,29 +44,68 @@ HARD_ANGLES = np.array(
 )
 
 
-# Exact references: 40 terms of each power series summed in rational arithmetic.
+def _bernoulli(n: int) -> list[Fraction]:
+    """``B_0 … B_n`` exactly (``B_1 = −½``), by ``Σ_{k<m+1} C(m+1, k) B_k = 0``."""
+    b = [Fraction(1)]
+    for m in range(1, n + 1):
+        b.append(-sum(comb(m + 1, k) * b[k] for k in range(m)) / (m + 1))
+    return b
+
+
+_B = _bernoulli(82)
+# ``(θ/2)cot(θ/2) = Σ_j (−1)^j B_2j θ^2j / (2j)!`` (radius 2π), hence ``jinv_coef = (1 − half_cot)/θ²``.
+_HALF_COT = [(-1) ** j * _B[2 * j] / factorial(2 * j) for j in range(41)]
+
+# Power-series terms in ``t = θ²`` (``x²`` for atan_ratio) of every coefficient of ``_series``.
+TERMS = {
+    "sinc": lambda j: Fraction((-1) ** j, factorial(2 * j + 1)),
+    "cosc": lambda j: Fraction((-1) ** j, factorial(2 * j + 2)),
+    "sinc3": lambda j: Fraction((-1) ** j, factorial(2 * j + 3)),
+    "q_coef2": lambda j: Fraction((-1) ** j, factorial(2 * j + 4)),
+    "q_coef3": lambda j: Fraction((-1) ** j * (j + 1), factorial(2 * j + 5)),
+    "jinv_coef": lambda j: -_HALF_COT[j + 1],
+    "half_cot": lambda j: _HALF_COT[j],
+    "sinc_half": lambda j: Fraction((-1) ** j, factorial(2 * j + 1) * 2 ** (2 * j + 1)),
+    "cos_half": lambda j: Fraction((-1) ** j, factorial(2 * j) * 4**j),
+    "atan_ratio": lambda j: Fraction((-1) ** j, 2 * j + 1),
+}
+
+
 def _reference(name: str, theta: float) -> float:
-    from fractions import Fraction
-    from math import factorial
-
+    """40 terms of the power series summed in rational arithmetic (exact to double precision where used)."""
     t = Fraction(theta) ** 2
-    terms = {
-        "sinc": lambda j: Fraction((-1) ** j, factorial(2 * j + 1)),
-        "cosc": lambda j: Fraction((-1) ** j, factorial(2 * j + 2)),
-        "sinc3": lambda j: Fraction((-1) ** j, factorial(2 * j + 3)),
-        "q_coef2": lambda j: Fraction((-1) ** j, factorial(2 * j + 4)),
-        "q_coef3": lambda j: Fraction((-1) ** j * (j + 1), factorial(2 * j + 5)),
-    }[name]
-    return float(sum(terms(j) * t**j for j in range(40)))
+    return float(sum(TERMS[name](j) * t**j for j in range(40)))
 
 
-@pytest.mark.parametrize("name", ["sinc", "cosc", "sinc3", "q_coef2", "q_coef3"])
+def _numpy(name: str, theta: np.ndarray) -> np.ndarray:
+    coef = next(c for c in _series.COEFFICIENTS if c.name == name)
+    return _series.evaluate(coef, theta * theta, theta)
+
+
+@pytest.mark.parametrize("name", sorted(TERMS))
 def test_series_coefficients_match_exact_reference(name):
-    """Exact rational evaluation of the full power series vs both branches."""
-    f = getattr(_series, name)
-    theta = np.concatenate([np.linspace(0.0, 3.0, 61), [0.3, 0.5, 0.7], np.nextafter([0.3, 0.5, 0.7], 0)])
+    """Exact rational evaluation of the full power series vs both branches, including each
+    threshold and its neighbour below (up to θ = 3; atan_ratio up to x = 0.5, its series' domain)."""
+    top = 0.5 if name == "atan_ratio" else 3.0
+    thresholds = np.array([c.threshold for c in _series.COEFFICIENTS])
+    theta = np.concatenate([np.linspace(0.0, top, 61), thresholds, np.nextafter(thresholds, 0), [1e-8, 1e-5]])
+    theta = theta[theta <= top]
     ref = np.array([_reference(name, x) for x in theta])
-    np.testing.assert_allclose(f(theta), ref, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(_numpy(name, theta), ref, rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("coef", _series.COEFFICIENTS, ids=lambda c: c.name)
+def test_series_data_are_the_taylor_coefficients(coef):
+    """The stored series is the exact Taylor series (to rounding), and the public numpy
+    function of the angle is :func:`_series.evaluate` of the data, even in θ."""
+    exact = np.array([float(TERMS[coef.name](j)) for j in range(len(coef.series))])
+    np.testing.assert_allclose(coef.series, exact, rtol=1e-15, atol=0)
+    theta = np.array([0.0, 1e-9, 0.5 * coef.threshold, coef.threshold, 0.8, 2.0, 3.0])
+    f = getattr(_series, coef.name, None)
+    if f is not None:
+        np.testing.assert_array_equal(f(theta), _series.evaluate(coef, theta * theta, theta))
+        np.testing.assert_allclose(f(-theta), f(theta), rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(_series.evaluate(coef, theta * theta), _series.evaluate(coef, theta * theta, theta))
 
 
 def test_jinv_coefficient():
@@ -73,6 +115,27 @@ def test_jinv_coefficient():
     np.testing.assert_allclose(_series.jinv_coef(theta)[theta > 0.05], ref[theta > 0.05], rtol=1e-12)
     assert _series.jinv_coef(np.array([np.pi]))[0] == pytest.approx(1 / np.pi**2, rel=1e-15)
     assert _series.jinv_coef(np.array([0.0]))[0] == 1 / 12
+
+
+def test_half_cot_is_accurate_relative_to_its_value_up_to_2pi():
+    """``(θ/2)cot(θ/2)``: relative accuracy also at its zero π, where ``1 − θ² jinv_coef`` cancels."""
+    theta = np.concatenate([np.linspace(1e-3, 2 * np.pi - 1e-3, 300), [np.pi, np.pi - 1e-9, 0.3, np.nextafter(0.3, 0)]])
+    ref = 0.5 * theta / np.tan(0.5 * theta)
+    np.testing.assert_allclose(_series.half_cot(theta), ref, rtol=1e-13, atol=1e-300)
+    np.testing.assert_allclose(_series.half_cot(theta), 1.0 - theta**2 * _series.jinv_coef(theta), atol=1e-12)
+    assert abs(_series.half_cot(np.array([np.pi]))[0]) < 1e-16
+
+
+def test_atan2_ratio():
+    """``atan2(s, c)/s`` for ``s ≥ 0`` and any ``c``: the series only where ``c > 0`` and ``s/c < 1e-3``."""
+    phi = np.concatenate([np.linspace(0.0, np.pi, 181), [1e-3, np.nextafter(1e-3, 0), 1e-9, np.pi - 1e-9]])
+    for scale in (1.0, 0.5, 3.0):  # matrix residuals carry c = (tr R − 1)/2 and a = sin θ u
+        s, c = scale * np.sin(phi), scale * np.cos(phi)
+        ratio = _series.atan2_ratio(s * s, c)
+        ref = np.where(s > 0, np.arctan2(s, c) / np.where(s > 0, s, 1.0), 1.0 / scale)
+        np.testing.assert_allclose(ratio, ref, rtol=1e-15, atol=0)
+    # s = 0 with c ≤ 0 (a rotation by exactly π given as a matrix): finite, no division by zero.
+    assert np.isfinite(_series.atan2_ratio(np.zeros(2), np.array([-1.0, 0.0]))).all()
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=group_id)
