@@ -123,8 +123,33 @@ class Entry:
             return None
         return Path(data_dir if data_dir is not None else default_data_dir()) / self.file
 
+    def check_size(self, available: float | None = None) -> None:
+        """Refuse, naming the instance, a synthetic instance whose estimated memory
+        (:data:`BYTES_PER_VERTEX`, :data:`BYTES_PER_EDGE` times its size) exceeds
+        ``available`` bytes (default: the memory this machine has available).
+
+        Raises
+        ------
+        CatalogueError
+        """
+        if self.generator is None:
+            return
+        try:
+            n, m = _size(self.generator, _Params(self.params))
+        except (TypeError, ValueError):
+            return  # bad parameters: the generator itself says what is wrong
+        need = BYTES_PER_VERTEX * n + BYTES_PER_EDGE * m
+        have = available_memory() if available is None else available
+        if need > have:
+            raise CatalogueError(
+                f"instance {self.name!r}: about {n:.3g} variables and {m:.3g} edges need some {need / 1e9:.3g} GB, "
+                f"more than the {have / 1e9:.3g} GB available"
+            )
+
     def load(self, data_dir: Path | str | None = None) -> Loaded:
-        """Generate or read the instance. A missing file raises ``FileNotFoundError``."""
+        """Generate or read the instance. A missing file raises ``FileNotFoundError``; a
+        synthetic instance too large for memory raises :class:`CatalogueError` (:meth:`check_size`)."""
+        self.check_size()
         truth = None
         if self.generator is not None:
             try:
@@ -142,6 +167,49 @@ class Entry:
             kind = get_kind(self.problem)
             spec, truth = kind.from_pose_graph(spec), None if truth is None else kind.from_poses(truth)
         return Loaded(self, spec, truth)
+
+
+BYTES_PER_VERTEX = 2_000
+"""A generous estimate of the memory a solve needs per variable (points, tangents, the
+Cholesky factor's share), and per edge (measurements, residuals, Jacobians, Hessian blocks)."""
+BYTES_PER_EDGE = 5_000
+
+
+def available_memory() -> float:
+    """Bytes of memory available to a new allocation (``MemAvailable`` of ``/proc/meminfo``,
+    else all physical memory)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+class _Params(dict):  # type: ignore[type-arg]
+    """Generator parameters with the generators' defaults for the sizes (floats: no overflow)."""
+
+    def __missing__(self, key: str) -> float:
+        return {"side": 10, "rows": 20, "cols": 20, "n_rings": 50, "poses_per_ring": 50, "n_laps": 10,
+                "poses_per_lap": 100, "n": 100, "degree": 10}[key]  # fmt: skip
+
+
+_SIZE_PARAMS = {
+    "cube": ("side", "side", "side"), "grid2d": ("rows", "cols"), "sphere": ("n_rings", "poses_per_ring"),
+    "torus": ("n_laps", "poses_per_lap"), "circle2d": ("n_laps", "poses_per_lap"), "rotation_averaging": ("n",),
+}  # fmt: skip
+
+
+def _size(generator: str, p: _Params) -> tuple[float, float]:
+    """``(n, m)`` of a generator's instance, at most: trajectories have ``m ≤ 3n`` (every
+    loop-closure candidate kept), random graphs ``n − 1 + p n(n−1)/2``."""
+    n = math.prod(float(p[k]) for k in _SIZE_PARAMS[generator])
+    if generator != "rotation_averaging":
+        return n, 3 * n
+    rate = p["edge_probability"] if p.get("edge_probability") is not None else float(p["degree"]) / max(n - 1, 1)
+    return n, n - 1 + min(float(rate), 1.0) * n * (n - 1) / 2
 
 
 def _dataset(name: str, published: float | None = None, seconds: float | None = None) -> Entry:

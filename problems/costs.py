@@ -30,7 +30,11 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-class IndefiniteInformationError(ValueError):
+class InformationMatrixError(ValueError):
+    """Information matrices a cost cannot use (the message names the edges)."""
+
+
+class IndefiniteInformationError(InformationMatrixError):
     """Information matrices that are not positive definite, where the cost needs them to be."""
 
 
@@ -43,19 +47,55 @@ def _rows(x: LieGroup) -> FloatArray:
 # ---- information matrices --------------------------------------------------------------
 
 
+def _symmetric(a: FloatArray) -> FloatArray:
+    return 0.5 * a + 0.5 * np.swapaxes(a, -1, -2)  # (a + aᵀ)/2 would overflow near the float range
+
+
+def eigenvalues(information: FloatArray) -> FloatArray:
+    """The eigenvalues, ascending, of each symmetric part ``(Ω + Ωᵀ)/2``, ``(m, k)``.
+
+    Each matrix is scaled by its largest absolute entry before the decomposition, so
+    entries near the float range (``1e308``) neither overflow nor stall ``eigvalsh``;
+    the eigenvalues are scaled back (and may then be ``±inf``). Never warns or raises.
+    """
+    a = _symmetric(np.asarray(information, dtype=np.float64))
+    with np.errstate(all="ignore"):
+        scale = np.max(np.abs(a), axis=(-1, -2))
+        ok = np.isfinite(scale) & (scale > 0)
+        safe = np.where(ok, scale, 1.0)
+        lam = np.linalg.eigvalsh(np.where(ok[..., None, None], a / safe[..., None, None], 0.0))
+        lam = lam * safe[..., None]
+    lam[~np.isfinite(scale)] = np.nan
+    return np.asarray(lam)
+
+
 def nearest_positive_definite(information: FloatArray, rel_floor: float = 1e-9) -> FloatArray:
     """The symmetric part of each ``Ω`` with eigenvalues clipped at ``rel_floor · λ_max``
     (Higham's nearest symmetric positive semidefinite matrix, kept definite)."""
-    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
-    lam, v = np.linalg.eigh(sym)
+    lam, v = np.linalg.eigh(_symmetric(information))
     floor = rel_floor * np.maximum(lam[..., -1:], np.finfo(float).tiny)
     return np.einsum("...ij,...j,...kj->...ik", v, np.maximum(lam, floor), v)
 
 
 def indefinite_edges(information: FloatArray) -> IntArray:
-    """Indices of edges whose (symmetrized) ``Ω`` is not positive definite."""
-    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
-    return np.flatnonzero(np.linalg.eigvalsh(sym)[..., 0] <= 0.0)
+    """Indices of edges whose (symmetrized) ``Ω`` is not positive definite: indefinite,
+    singular (an eigenvalue ``≤ 0``) or beyond the float range."""
+    lam = eigenvalues(information)
+    return np.flatnonzero(~(np.isfinite(lam).all(axis=-1) & (lam[..., 0] > 0.0)))
+
+
+def asymmetric_edges(information: FloatArray, rtol: float = 1e-12) -> IntArray:
+    """Indices of edges whose ``Ω`` is not symmetric beyond round-off: ``max|Ω − Ωᵀ| > rtol·max|Ω|``."""
+    info = np.asarray(information, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        scale = np.max(np.abs(info), axis=(-1, -2), initial=0.0)
+        skew = np.max(np.abs(info - np.swapaxes(info, -1, -2)), axis=(-1, -2), initial=0.0)
+    return np.flatnonzero(skew > rtol * scale)
+
+
+def _named(edges: IntArray, edge_names: Any) -> str:
+    names = [str(edge_names[e]) if edge_names is not None else str(e) for e in edges[:10]]
+    return ", ".join(names) + (f" and {edges.size - 10} more" if edges.size > 10 else "")
 
 
 def information_sqrt(information: FloatArray, edge_names: Any = None, *, repair: bool = False) -> FloatArray:
@@ -63,35 +103,52 @@ def information_sqrt(information: FloatArray, edge_names: Any = None, *, repair:
 
     Raises
     ------
-    IndefiniteInformationError
-        Naming the offending edges (``edge_names[e]`` if given), unless ``repair``
-        replaces them by :func:`nearest_positive_definite`.
+    InformationMatrixError
+        For matrices that are not symmetric beyond round-off, and
+        :class:`IndefiniteInformationError` for those that are not positive definite
+        (indefinite or singular), naming the edges (``edge_names[e]`` if given) — unless
+        ``repair`` symmetrizes them and replaces the indefinite ones by
+        :func:`nearest_positive_definite`.
     """
-    bad = indefinite_edges(information)
+    asymmetric, bad = asymmetric_edges(information), indefinite_edges(information)
+    if not repair and asymmetric.size:
+        raise InformationMatrixError(
+            f"{asymmetric.size} edges have information matrices that are not symmetric: "
+            f"{_named(asymmetric, edge_names)}; pass repair_information=True to use their symmetric parts"
+        )
+    if not repair and bad.size:
+        raise IndefiniteInformationError(
+            f"{bad.size} edges have information matrices that are not positive definite (indefinite or singular): "
+            f"{_named(bad, edge_names)}; pass repair_information=True to use the nearest positive definite ones"
+        )
+    information = _symmetric(information)
     if bad.size:
-        if not repair:
-            names = [str(edge_names[e]) if edge_names is not None else str(e) for e in bad[:10]]
-            more = f" and {bad.size - 10} more" if bad.size > 10 else ""
-            raise IndefiniteInformationError(
-                f"{bad.size} edges have information matrices that are not positive definite: "
-                f"{', '.join(names)}{more}; pass repair_information=True to use the nearest positive definite ones"
-            )
-        information = information.copy()
         information[bad] = nearest_positive_definite(information[bad])
-    sym = 0.5 * (information + np.swapaxes(information, -1, -2))
-    return np.swapaxes(np.linalg.cholesky(sym), -1, -2)
+    return np.swapaxes(np.linalg.cholesky(information), -1, -2)
+
+
+def _trace_of_inverse(blocks: FloatArray) -> FloatArray:
+    """``tr(A⁻¹) = Σ 1/λ`` of each symmetric block, ``nan`` where it is singular (an eigenvalue
+    below ``k·ε·max|λ|``) or non-finite."""
+    lam = eigenvalues(blocks)
+    with np.errstate(all="ignore"):
+        size = np.max(np.abs(lam), axis=-1, keepdims=True)
+        singular = ~np.isfinite(lam).all(axis=-1) | (np.abs(lam) <= lam.shape[-1] * np.finfo(float).eps * size).any(-1)
+        return np.where(singular, np.nan, np.sum(1.0 / lam, axis=-1))
 
 
 def se_sync_weights(information: FloatArray, d: int) -> tuple[FloatArray, FloatArray]:
     """SE-Sync's isotropic weights ``(κ, τ)`` from information matrices in ``(ρ, θ)`` order:
-    ``τ = d / tr(Ω_tt⁻¹)``; ``κ = Ω_θθ`` in 2-D, ``3 / (2 tr(Ω_RR⁻¹))`` in 3-D."""
-    omega_t = information[:, :d, :d]
-    tau = d / np.trace(np.linalg.inv(omega_t), axis1=1, axis2=2)
-    if d == 2:
-        kappa = information[:, 2, 2].copy()
-    else:
-        kappa = 3.0 / (2.0 * np.trace(np.linalg.inv(information[:, 3:, 3:]), axis1=1, axis2=2))
-    return kappa, tau
+    ``τ = d / tr(Ω_tt⁻¹)``; ``κ = Ω_θθ`` in 2-D, ``3 / (2 tr(Ω_RR⁻¹))`` in 3-D. Edges whose
+    blocks are singular get ``nan``, which the chordal cost refuses, naming them."""
+    with np.errstate(all="ignore"):
+        tau = d / _trace_of_inverse(information[:, :d, :d])
+        if d == 2:
+            kappa = information[:, 2, 2].copy()
+        else:
+            kappa = 3.0 / (2.0 * _trace_of_inverse(information[:, 3:, 3:]))
+    # tr(Ω⁻¹) = 0 (an indefinite block such as diag(1, −1)) would give an infinite weight.
+    return np.where(np.isfinite(kappa), kappa, np.nan), np.where(np.isfinite(tau), tau, np.nan)
 
 
 # ---- the geodesic cost -------------------------------------------------------------------

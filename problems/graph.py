@@ -69,6 +69,8 @@ class MeasurementGraph(ABC):
     name: str
     information: FloatArray
     """``Ω_e``, ``(m, k, k)`` with ``k = group.dim``, in tangent order ``(ρ, θ)`` (a field or a property)."""
+    edge_lines: IntArray | None
+    """The line of each edge in its source file, for messages, or ``None``."""
 
     # ---- what a kind supplies ---------------------------------------------------------
 
@@ -123,6 +125,11 @@ class MeasurementGraph(ABC):
         fixed = np.asarray(self.fixed, dtype=np.int64).reshape(-1)
         if fixed.size and (fixed.min() < 0 or fixed.max() >= n):
             raise ValueError(f"{name}: fixed vertex indices must lie in 0..{n - 1}")
+        if self.edge_lines is not None:
+            lines = np.asarray(self.edge_lines, dtype=np.int64)
+            if lines.shape != (m,):
+                raise ShapeError(f"{name}: edge_lines must have shape ({m},), got {lines.shape}")
+            object.__setattr__(self, "edge_lines", lines)
         object.__setattr__(self, "edges", edges.astype(np.int64))
         object.__setattr__(self, "ids", ids)
         object.__setattr__(self, "fixed", fixed)
@@ -166,9 +173,14 @@ class MeasurementGraph(ABC):
         return Power(LieGroupManifold(self.group), self.n)
 
     def edge_names(self, edges: Any) -> list[str]:
-        """``"i→j"`` in the source's vertex ids, for messages."""
-        ij = self.ids[self.edges[np.asarray(edges, dtype=np.int64)]]
-        return [f"{a}→{b}" for a, b in ij]
+        """``"i→j"`` in the source's vertex ids, for messages, with the source file's line
+        (``"i→j (line 12)"``) when the graph knows it (:attr:`edge_lines`)."""
+        index = np.asarray(edges, dtype=np.int64).reshape(-1)
+        ij = self.ids[self.edges[index]]
+        lines = self.edge_lines
+        if lines is None:
+            return [f"{a}→{b}" for a, b in ij]
+        return [f"{a}→{b} (line {line})" for (a, b), line in zip(ij, lines[index], strict=True)]
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r}, {self.group.__name__}, n={self.n}, m={self.m})"
@@ -192,11 +204,16 @@ class MeasurementGraph(ABC):
             Naming the edges where ``κ`` or ``τ`` is not positive.
         """
         kappa, tau = self.chordal_parameters()
-        positive = kappa > 0 if tau is None else (kappa > 0) & (tau > 0)
-        if not positive.all():
-            bad = np.flatnonzero(~positive)
+        with np.errstate(invalid="ignore"):
+            usable = np.isfinite(kappa) & (kappa > 0)
+            if tau is not None:
+                usable &= np.isfinite(tau) & (tau > 0)
+        if not usable.all():
+            bad = np.flatnonzero(~usable)
+            more = f" and {bad.size - 10} more" if bad.size > 10 else ""
             raise costs.IndefiniteInformationError(
-                f"{self.name}: the chordal cost needs κ, τ > 0; not so on edges {self.edge_names(bad[:10])}"
+                f"{self.name}: the chordal cost needs finite κ, τ > 0 (SE-Sync's weights of the information "
+                f"matrices); not so on {bad.size} edges: {', '.join(self.edge_names(bad[:10]))}{more}"
             )
         columns = [np.repeat(np.sqrt(kappa)[:, None], self.d, axis=1)]
         if tau is not None:
@@ -236,6 +253,8 @@ class MeasurementGraph(ABC):
             naming them; ``True`` replaces them by the nearest positive definite matrix.
         """
         cost = self._cost_name(cost)
+        if not self.m:
+            raise ValueError(f"{self.name}: the graph has no edges, so there is nothing to optimize")
         fixed = np.array([self.anchor])
         if cost == "geodesic":
             sqrt_info = costs.information_sqrt(self.information, _EdgeNames(self), repair=repair_information)
@@ -286,10 +305,10 @@ class MeasurementGraph(ABC):
         initialization.check_connected(self.n, self.edges, self.ids, self.anchor)
         kappa, tau = self.chordal_parameters()
         z, d = self.measurements.as_matrix(), self.d
-        r = initialization.chordal_rotations(self.n, self.edges, z[:, :d, :d], np.abs(kappa), self.anchor)
+        r = initialization.chordal_rotations(self.n, self.edges, z[:, :d, :d], _usable(kappa), self.anchor)
         if tau is None:
             return self._in_source_frame(self.group.from_matrix(r))
-        t = initialization.chordal_translations(self.n, self.edges, r, z[:, :d, d], np.abs(tau), self.anchor)
+        t = initialization.chordal_translations(self.n, self.edges, r, z[:, :d, d], _usable(tau), self.anchor)
         return self._in_source_frame(self.group.from_matrix(assemble(r, t)))
 
     # ---- what commands show ------------------------------------------------------------
@@ -299,6 +318,19 @@ class MeasurementGraph(ABC):
         if not self.has_translations:
             return None
         return np.asarray(x.as_matrix()[:, : self.d, self.d])
+
+
+def _usable(weights: FloatArray) -> FloatArray:
+    """``|w|`` clipped to ``10^±6`` times the median of the usable ones, with the weights of
+    edges that have none (zero, ``nan``: singular information) replaced by that median: such
+    edges still connect the graph, and extreme weights cannot make the linear systems of the
+    initialization singular in floating point."""
+    w = np.abs(weights)
+    good = np.isfinite(w) & (w > 0)
+    if good.all() and w.max() <= 1e6 * w.min():
+        return w
+    median = float(np.median(w[good])) if good.any() else 1.0
+    return np.where(good, np.clip(w, 1e-6 * median, 1e6 * median), median)
 
 
 class _EdgeNames:

@@ -48,6 +48,8 @@ class PoseGraph(MeasurementGraph):
     fixed : int array, optional
         Vertex indices held fixed by the source (g2o ``FIX``).
     name : str
+    edge_lines : int array ``(m,)``, optional
+        The line of each edge in its source file (messages name them).
     """
 
     kind: ClassVar[str] = "pose-graph"
@@ -62,6 +64,7 @@ class PoseGraph(MeasurementGraph):
     poses: LieGroup | None = None
     fixed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     name: str = "pose graph"
+    edge_lines: IntArray | None = None
 
     def __post_init__(self) -> None:
         self._validate((SE2, SE3), None, allow_empty=True)
@@ -71,7 +74,10 @@ class PoseGraph(MeasurementGraph):
             raise ShapeError(f"{self.name}: information must have shape ({m}, {k}, {k}), got {info.shape}")
         if not np.all(np.isfinite(info)):
             bad = np.flatnonzero(~np.isfinite(info).all(axis=(1, 2)))
-            raise ValueError(f"{self.name}: non-finite information matrix on edges {bad[:10].tolist()}")
+            names = ", ".join(self.edge_names(bad[:10]))
+            raise costs.InformationMatrixError(
+                f"{self.name}: non-finite information matrices on {bad.size} edges: {names}"
+            )
         object.__setattr__(self, "information", info)
 
     @property

@@ -16,6 +16,7 @@ from manopt_lie import SO2, SO3
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie.base import LieGroup
 
+from .costs import InformationMatrixError
 from .graph import MeasurementGraph
 from .pose_graph import PoseGraph
 
@@ -65,6 +66,7 @@ class RotationAveraging(MeasurementGraph):
     source: PoseGraph | None = None
     ids: IntArray = field(default=None, repr=False)  # type: ignore[assignment]
     fixed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64), repr=False)
+    edge_lines: IntArray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         n = self._validate((SO2, SO3), None if self.n < 0 else int(self.n), allow_empty=False)
@@ -75,7 +77,10 @@ class RotationAveraging(MeasurementGraph):
             raise ShapeError(f"{self.name}: kappa must have shape ({m},), got {kappa.shape}")
         if not np.all(np.isfinite(kappa) & (kappa > 0)):
             bad = np.flatnonzero(~(np.isfinite(kappa) & (kappa > 0)))
-            raise ValueError(f"{self.name}: kappa must be finite and positive (edges {bad[:10].tolist()})")
+            raise InformationMatrixError(
+                f"{self.name}: kappa must be finite and positive; not so on {bad.size} edges: "
+                f"{', '.join(self.edge_names(bad[:10]))}"
+            )
         object.__setattr__(self, "kappa", kappa)
 
     @property
@@ -122,5 +127,5 @@ def from_pose_graph(graph: PoseGraph) -> RotationAveraging:
     estimates = None if graph.poses is None else graph.poses.rotation()  # type: ignore[attr-defined]
     return RotationAveraging(
         group, graph.edges, rotations, kappa, n=graph.n, name=f"{graph.name} (rotations)", rotations=estimates,
-        source=graph, ids=graph.ids, fixed=graph.fixed,
+        source=graph, ids=graph.ids, fixed=graph.fixed, edge_lines=graph.edge_lines,
     )  # fmt: skip

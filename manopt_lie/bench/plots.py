@@ -16,6 +16,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
+from manopt_lie.atomic import atomic_write
 from manopt_lie.bench.record import Run, best_costs, solved
 
 FLOOR = 1e-16
@@ -37,11 +38,13 @@ def color(optimizer: str) -> str:
 
 
 def save(fig: Figure, path: Path | str) -> Path:
-    """Write ``fig`` to ``path`` as PNG (parents created, dpi 120, tight box), then free it."""
+    """Write ``fig`` to ``path`` as PNG (parents created, dpi 120, tight box; atomically:
+    :func:`manopt_lie.atomic.atomic_write`), then free it."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     FigureCanvasAgg(fig)  # attach the Agg canvas: no pyplot, no global figure registry
-    fig.savefig(path, dpi=120, bbox_inches="tight", format="png")
+    with atomic_write(path, "wb") as f:
+        fig.savefig(f, dpi=120, bbox_inches="tight", format="png")
     fig.clear()
     return path
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from manopt_lie.optim import OPTIMIZERS, StoppingCriteria, get_optimizer
-from manopt_lie.problems.catalogue import Entry, Loaded
+from manopt_lie.problems.catalogue import CatalogueError, Entry, Loaded
 
 from . import peers as peer_adapters
 from .record import Run, finite
@@ -153,18 +153,23 @@ def execute(
     on_task: Callable[[Task], None] | None = None,
 ) -> SuiteResult:
     """Run ``tasks`` (from :func:`plan`). ``on_task`` is called before each one (progress
-    display). An instance whose data file is missing raises ``FileNotFoundError``."""
+    display). An instance whose data file is missing raises ``FileNotFoundError``; one too
+    large for memory raises :class:`~manopt_lie.problems.catalogue.CatalogueError` naming it."""
     settings = settings or Settings()
     out = SuiteResult()
     for task in tasks:
         if on_task is not None:
             on_task(task)
         name = task.entry.name
-        if name not in out.loaded:
-            out.loaded[name] = task.entry.load(data_dir)
-            out.init_time[name], out.initial[name] = initialize(out.loaded[name])
-        loaded, x0 = out.loaded[name], out.initial[name]
-        run, x = _runner(task.solver)(task, loaded, x0, settings)
+        try:
+            if name not in out.loaded:
+                out.loaded[name] = task.entry.load(data_dir)
+                out.init_time[name], out.initial[name] = initialize(out.loaded[name])
+            loaded, x0 = out.loaded[name], out.initial[name]
+            run, x = _runner(task.solver)(task, loaded, x0, settings)
+        except MemoryError:
+            out.loaded.pop(name, None)  # let the memory go before saying so
+            raise CatalogueError(f"instance {name!r} ({task.label}): out of memory") from None
         run.init_time = out.init_time[name]
         out.runs.append(run)
         out.solutions[name, task.cost, task.solver] = x
