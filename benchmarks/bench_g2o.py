@@ -7,8 +7,8 @@ runs). Each measurement runs in a fresh interpreter, so that one file's memory d
 hide another's:
 
 - ``time``: the median wall time of ``--repeat`` calls of ``g2o.read(path)``;
-- ``rss``: the process's peak resident set (``getrusage``'s ``ru_maxrss``) after the reads
-  less its resident set before them, in MB and as a multiple of the file size;
+- ``rss``: the process's peak resident set (``getrusage``'s ``ru_maxrss``) after one read
+  less its resident set before it, in MB and as a multiple of the file size;
 - ``traced``: the peak of the memory ``tracemalloc`` traces during one read (Python
   objects and NumPy arrays), in MB and as a multiple of the file size.
 
@@ -25,7 +25,6 @@ import resource
 import subprocess
 import sys
 import tempfile
-import time
 import tracemalloc
 from pathlib import Path
 from typing import Any
@@ -60,7 +59,7 @@ def synthetic_file(kind: str, megabytes: float, folder: Path) -> Path:
 def measure(path: Path, repeat: int) -> dict[str, Any]:
     """Time and memory of reading ``path``, each in a fresh interpreter."""
     rows: dict[str, Any] = {}
-    for mode in ("time", "traced"):
+    for mode in ("time", "rss", "traced"):
         out = subprocess.run(
             [sys.executable, __file__, "--child", mode, "--repeat", str(repeat), str(path)],
             check=True,
@@ -84,17 +83,18 @@ def child(mode: str, path: Path, repeat: int) -> dict[str, Any]:
     """One measurement in this interpreter (``--child``)."""
     size = path.stat().st_size
     if mode == "time":
-        before = _current_rss()
         seconds, graph = median_time(lambda: g2o.read(path), repeat)
+        return {"n": graph.n, "m": graph.m, "time": seconds}
+    if mode == "rss":  # one read: no earlier graph is alive
+        before = _current_rss()
+        g2o.read(path)
         grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - before  # KiB on Linux
-        return {"n": graph.n, "m": graph.m, "time": seconds, "rss_MB": grown / MB, "rss_x": grown / size}
+        return {"rss_MB": grown / MB, "rss_x": grown / size}
     tracemalloc.start()
-    start = time.perf_counter()
     g2o.read(path)
-    elapsed = time.perf_counter() - start
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    return {"traced_MB": peak / MB, "traced_x": peak / size, "traced_time": elapsed}
+    return {"traced_MB": peak / MB, "traced_x": peak / size}
 
 
 def main() -> None:
@@ -104,7 +104,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--dir", type=Path, default=Path(tempfile.gettempdir()) / "manopt-lie-bench-g2o")
     parser.add_argument("--json", type=Path, help="write the rows as JSON")
-    parser.add_argument("--child", choices=["time", "traced"], help=argparse.SUPPRESS)
+    parser.add_argument("--child", choices=["time", "rss", "traced"], help=argparse.SUPPRESS)
     parser.add_argument("path", nargs="?", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -112,7 +112,8 @@ def main() -> None:
         return
     os.makedirs(args.dir, exist_ok=True)
     rows = []
-    print(f"{'file':<18} {'MB':>7} {'n':>8} {'m':>8} {'time s':>7} {'rss MB':>8} {'×file':>6} {'traced MB':>9} {'×file':>6}")
+    print(f"{'file':<18} {'MB':>7} {'n':>8} {'m':>8} {'time s':>7} {'rss MB':>8} {'×file':>6} ", end="")
+    print(f"{'traced MB':>9} {'×file':>6}")
     for kind in args.kinds:
         for megabytes in args.sizes:
             path = synthetic_file(kind, megabytes, args.dir)

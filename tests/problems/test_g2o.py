@@ -103,7 +103,7 @@ PARSE_ERRORS = {
     "FIX unknown vertex": (text(v2(0), v2(1), "FIX 0 9", e2(0, 1)), 3, r"FIX names vertex 9", {}),
     "FIX not an integer": (text(v2(0), v2(1), "FIX x", e2(0, 1)), 3, r"FIX field 'x' is not an integer id", {}),
     "FIX without ids": (text(v2(0), "FIX", v2(1), e2(0, 1)), 2, r"FIX needs at least 1 vertex id", {}),
-    "vertex quaternion": (text(v3(0), v3(1, "0 0 0 0 0 0 1.00001")), 2, r"vertex quaternion norm 1\.00001 ", {}),
+    "vertex quaternion": (text(v3(0), v3(1, "0 0 0 0 0 0 1.0002")), 2, r"vertex quaternion norm 1\.0002 ", {}),
     "edge quaternion": (text(v3(0), v3(1), e3(0, 1, "1 0 0 0 0 0 0.9")), 3, r"edge quaternion norm 0\.9 is not 1", {}),
     "zero quaternion": (text(v3(0), v3(1), e3(0, 1, "1 0 0 0 0 0 0")), 3, r"quaternion norm 0\.0", {}),
     "quaternion_tol": (SE3_GRAPH.replace("0 0 0 1 1", "0 0 0 1.001 1"), 3, r"quaternion", {"quaternion_tol": 1e-4}),
@@ -223,15 +223,17 @@ def test_non_contiguous_unsorted_ids_are_kept_for_writing():
 
 def test_quaternions_within_tolerance_are_normalized():
     c, s = np.cos(0.2), np.sin(0.2)
-    scaled = " ".join(repr(float(x) * (1 + 5e-7)) for x in (0.0, 0.0, s, c))
+    scaled = " ".join(repr(float(x) * (1 + 5e-5)) for x in (0.0, 0.0, s, c))
     graph = g2o.loads(text(v3(0, f"0 0 0 {scaled}"), v3(1), e3(0, 1)))
     np.testing.assert_allclose(graph.poses.rotation().as_matrix()[0], SO3.exp([0, 0, 0.4]).as_matrix(), atol=1e-15)
-    off = text(v3(0), v3(1, "0 0 0 0 0 0 1.00002"), e3(0, 1))
-    with pytest.raises(g2o.ParseError, match="quaternion_tol=1e-06") as info:
+    off = text(v3(0), v3(1, "0 0 0 0 0 0 1.0002"), e3(0, 1))
+    with pytest.raises(g2o.ParseError, match="quaternion_tol=0.0001") as info:
         g2o.loads(off)
     assert info.value.lineno == 2
-    graph = g2o.loads(off, quaternion_tol=1e-4)
+    graph = g2o.loads(off, quaternion_tol=1e-3)
     np.testing.assert_array_equal(graph.poses.rotation().as_matrix()[1], np.eye(3))
+    with pytest.raises(g2o.ParseError, match="quaternion_tol=1e-06"):
+        g2o.loads(text(v3(0), v3(1, "0 0 0 0 0 0 1.00002"), e3(0, 1)), quaternion_tol=1e-6)
 
 
 def test_indefinite_information_is_read_and_reported_by_lint():
