@@ -24,6 +24,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
 
 from __future__ import annotations
 
+import threading
 from typing import Protocol
 
 import numpy as np
@@ -37,6 +38,10 @@ __all__ = ["BACKENDS", "Backend", "available_backends", "surrogate_values"]
 
 FloatArray = NDArray[np.float64]
 IndexArray = NDArray[np.signedinteger]
+
+# CVXOPT's CHOLMOD options are one module-global dict: analyses in two threads
+# must not interleave their save/set/restore of it.
+_CHOLMOD_OPTIONS_LOCK = threading.Lock()
 
 
 class Backend(Protocol):
@@ -159,13 +164,14 @@ class _CHOLMOD:
         stored_rows, stored_cols = np.array(self._A.I).ravel(), np.array(self._A.J).ravel()
         if not (np.array_equal(stored_rows, rows) and np.array_equal(stored_cols, cols)):
             raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
-        saved = dict(cholmod.options)
-        cholmod.options["supernodal"] = 2  # options are module-global: set for this analysis only
-        try:
-            self._factor = cholmod.symbolic(self._A, uplo="L")
-        finally:
-            cholmod.options.clear()
-            cholmod.options.update(saved)
+        with _CHOLMOD_OPTIONS_LOCK:
+            saved = dict(cholmod.options)
+            cholmod.options["supernodal"] = 2  # options are module-global: set for this analysis only
+            try:
+                self._factor = cholmod.symbolic(self._A, uplo="L")
+            finally:
+                cholmod.options.clear()
+                cholmod.options.update(saved)
 
     def factorize(self, data: FloatArray) -> None:
         self._A.V = self._cvxopt.matrix(np.ascontiguousarray(data[self._lower], dtype=np.float64))

@@ -19,6 +19,7 @@ refills data arrays.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 
 import numpy as np
@@ -94,11 +95,19 @@ class BlockStructure:
         self._hess_scatter: IntArray = np.concatenate(hess)
         self._grad_scatter: IntArray = np.concatenate(grad)
         # Workspaces reused by normal_equations: fresh arrays this size cost
-        # more in page faults than the products written into them.
-        self._hess_work = np.empty(self._hess_scatter.size)
-        self._grad_work = np.empty(self._grad_scatter.size)
-        self._weighted_work = np.empty(max(f.m * f.residual_dim * f.width for f in self._factors))
+        # more in page faults than the products written into them. One set per
+        # thread, made on first use, so that threads may share the structure.
+        self._local = threading.local()
+        self._weighted_size = max(f.m * f.residual_dim * f.width for f in self._factors)
         self._build_jacobian_pattern(jac_cols)
+
+    def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A)."""
+        work: tuple[FloatArray, FloatArray, FloatArray] | None = getattr(self._local, "work", None)
+        if work is None:
+            work = (np.empty(self._hess_scatter.size), np.empty(self._grad_scatter.size), np.empty(self._weighted_size))
+            self._local.work = work
+        return work
 
     # -- symbolic analysis -------------------------------------------------
 
@@ -281,15 +290,16 @@ class BlockStructure:
 
         Notes
         -----
-        Reuses workspaces of the structure: one structure must not assemble
-        from two threads at once. ``H`` and ``g`` are always new arrays.
+        Reuses workspaces of the structure, one set per thread, so several
+        threads may assemble from one structure at once. ``H`` and ``g`` are
+        always new arrays.
         """
         blocks_ = self._check_blocks(blocks)
         if len(residuals) != len(self._factors):
             raise ValueError(f"expected {len(self._factors)} residual arrays (one per factor), got {len(residuals)}")
         if weights is not None and len(weights) != len(self._factors):
             raise ValueError(f"expected {len(self._factors)} weight arrays (one per factor), got {len(weights)}")
-        hess_vals, grad_vals = self._hess_work, self._grad_work
+        hess_vals, grad_vals, weighted = self._workspaces()
         h0 = g0 = 0
         for k, (a, f) in enumerate(zip(blocks_, self._factors, strict=True)):
             r = np.asarray(residuals[k], dtype=np.float64)
@@ -300,7 +310,7 @@ class BlockStructure:
                 w = np.asarray(weights[k], dtype=np.float64)
                 if w.shape != (f.m,):
                     raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")
-                aw = np.multiply(a, w[:, None, None], out=self._weighted_work[: a.size].reshape(a.shape))
+                aw = np.multiply(a, w[:, None, None], out=weighted[: a.size].reshape(a.shape))
             h1, g1 = h0 + f.m * f.width**2, g0 + f.m * f.width
             np.matmul(aw.transpose(0, 2, 1), a, out=hess_vals[h0:h1].reshape(f.m, f.width, f.width))
             np.matmul(r[:, None, :], aw, out=grad_vals[g0:g1].reshape(f.m, 1, f.width))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .line_search import Backtracking, LineSearch, StrongWolfe, select_line_search
+from .line_search import Backtracking, LineSearch, StrongWolfe, probe_decrease, select_line_search
 from .optimizer import Optimizer, Run, StoppingCriteria
 from .result import OptimizeResult, Status
 
@@ -30,6 +30,9 @@ class ConjugateGradient(Optimizer):
     ``|⟨g_k, g̃⟩| ≥ orthogonality·‖g_k‖²`` (Powell's test; off by default, as in
     Manopt: with an inexact line search it restarts too often — on a Brockett
     cost it tripled the iteration count).
+
+    Non-finite costs at trial points, non-finite gradients and short steps are
+    handled as in :class:`~manopt_lie.optim.GradientDescent`.
 
     Parameters
     ----------
@@ -84,10 +87,11 @@ class ConjugateGradient(Optimizer):
 
     def _beta(self, run: Run, x: Any, g: Any, g_norm: float, g_old: Any, g_old_norm: float, d_old: Any) -> float:
         if self.beta == "fletcher-reeves":
-            return g_norm**2 / g_old_norm**2
+            ratio = g_norm / g_old_norm
+            return ratio * ratio
         y = g - g_old
         if self.beta == "polak-ribiere":
-            return max(0.0, run.inner(x, g, y) / g_old_norm**2)
+            return max(0.0, run.inner(x, g, y) / g_old_norm / g_old_norm)
         dy = run.inner(x, d_old, y)
         if dy == 0.0:
             return 0.0
@@ -102,10 +106,9 @@ class ConjugateGradient(Optimizer):
         restart_every = self.restart_every or max(1, m.dim)
         powell = math.isfinite(self.orthogonality)
         need_g_old = powell or self.beta != "fletcher-reeves"
-        x, f = x0, run.cost(x0)
-        g = run.grad(x)
-        g_norm = run.norm(x, g)
-        d, d_norm, slope = -g, g_norm, -(g_norm**2)
+        x = x0
+        f, g, g_norm = run.initial(x0)
+        d, d_norm, slope = -g, g_norm, -(g_norm * g_norm)
         f_prev: float | None = None
         alpha: float | None = None
         since_restart = 0
@@ -118,10 +121,13 @@ class ConjugateGradient(Optimizer):
             x_new = ls.x
             g_new = run.grad(x_new) if ls.grad is None else ls.grad
             g_new_norm = run.norm(x_new, g_new)
+            if not math.isfinite(g_new_norm):
+                status = Status.NON_FINITE
+                break
             g_old = m.transp(x, x_new, g) if need_g_old else None
             since_restart += 1
             restart = since_restart >= restart_every or (
-                powell and abs(run.inner(x_new, g_new, g_old)) >= self.orthogonality * g_new_norm**2
+                powell and abs(run.inner(x_new, g_new, g_old)) >= self.orthogonality * g_new_norm * g_new_norm
             )
             beta = 0.0
             if not restart:
@@ -132,11 +138,13 @@ class ConjugateGradient(Optimizer):
                 if not (slope < 0 and math.isfinite(slope)):  # not a descent direction
                     beta = 0.0
             if beta == 0.0:
-                d, d_norm, slope = -g_new, g_new_norm, -(g_new_norm**2)
+                d, d_norm, slope = -g_new, g_new_norm, -(g_new_norm * g_new_norm)
             else:
                 d_norm = run.norm(x_new, d)
             since_restart = 0 if beta == 0.0 else since_restart
             f_prev, x, f, g, g_norm, alpha = f, x_new, ls.fun, g_new, g_new_norm, ls.alpha
             stop = run.record(x, f, g_norm, ls.step, beta=beta, evaluations=ls.nfev)
             status = Status.CALLBACK if stop else run.stop_reason(f_prev)
+            if status is Status.STEP_SIZE:  # converged only if nothing is left to gain along −g
+                status = run.stall_status(probe_decrease(run.cost, m, x, f, g, g_norm), f)
         return run.result(x, status)

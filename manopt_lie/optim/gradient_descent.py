@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
-from .line_search import Backtracking, LineSearch, StrongWolfe, select_line_search
+from .line_search import Backtracking, LineSearch, StrongWolfe, probe_decrease, select_line_search
 from .optimizer import Optimizer, Run, StoppingCriteria
 from .result import OptimizeResult, Status
 
@@ -35,6 +36,16 @@ class GradientDescent(Optimizer):
 
     Notes
     -----
+    A non-finite cost at a trial point counts as ``+inf`` (the search backtracks);
+    a non-finite gradient at the accepted point ends the run with
+    ``Status.NON_FINITE`` at the previous one. The search accepts only strict
+    decreases, so an unchanged cost ends the run with ``Status.LINE_SEARCH_FAILED``.
+    An accepted step shorter than ``min_step`` is convergence (``Status.STEP_SIZE``)
+    only if a fresh Armijo search along ``−g`` from a step of unit length finds no
+    decrease above round-off, ``ROUNDOFF·max(s, |f|)`` (:func:`probe_decrease`); if
+    it does, the steps were being cut back for another reason (e.g. trial points
+    without a finite cost) and the run ends with ``Status.NO_PROGRESS``.
+
     Manopt looks ``optimism = 2`` times further than ``2(f_{k−1} − f_k)/‖g_k‖²``; here it is
     1: on the benchmark problems the doubled trial costs a second cost evaluation in most
     iterations for the same iteration count.
@@ -61,20 +72,25 @@ class GradientDescent(Optimizer):
 
     def _solve(self, run: Run, x0: Any) -> OptimizeResult:
         m, search = run.manifold, self.line_search.search
-        x, f = x0, run.cost(x0)
-        g = run.grad(x)
-        g_norm = run.norm(x, g)
+        x = x0
+        f, g, g_norm = run.initial(x0)
         f_prev: float | None = None
         alpha: float | None = None
         status = Status.CALLBACK if run.record(x, f, g_norm) else run.stop_reason()
         while status is None:
-            ls = search(run.cost, run.grad, m, x, f, -g, g_norm, -(g_norm**2), f_prev=f_prev, alpha_prev=alpha)
+            slope = -(g_norm * g_norm)  # (a product: ** raises OverflowError)
+            ls = search(run.cost, run.grad, m, x, f, -g, g_norm, slope, f_prev=f_prev, alpha_prev=alpha)
             if not ls.success:
                 status = Status.LINE_SEARCH_FAILED
                 break
-            f_prev, x, f, alpha = f, ls.x, ls.fun, ls.alpha
-            g = run.grad(x) if ls.grad is None else ls.grad
-            g_norm = run.norm(x, g)
+            g_new = run.grad(ls.x) if ls.grad is None else ls.grad
+            g_new_norm = run.norm(ls.x, g_new)
+            if not math.isfinite(g_new_norm):
+                status = Status.NON_FINITE
+                break
+            f_prev, x, f, g, g_norm, alpha = f, ls.x, ls.fun, g_new, g_new_norm, ls.alpha
             stop = run.record(x, f, g_norm, ls.step, evaluations=ls.nfev)
             status = Status.CALLBACK if stop else run.stop_reason(f_prev)
+            if status is Status.STEP_SIZE:  # converged only if nothing is left to gain along −g
+                status = run.stall_status(probe_decrease(run.cost, m, x, f, g, g_norm), f)
         return run.result(x, status)

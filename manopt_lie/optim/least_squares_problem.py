@@ -14,6 +14,8 @@ gradient ``Σ w Jᵀr`` and the Gauss-Newton Hessian ``Σ w JᵀJ`` with IRLS we
 
 from __future__ import annotations
 
+import math
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -22,8 +24,10 @@ import numpy as np
 import scipy.sparse
 from numpy.typing import NDArray
 
+from ..errors import NonFiniteError, ShapeError
 from ..linalg import BlockStructure
 from ..manifolds import Power
+from ._values import check_result, same_point, snapshot
 from .losses import RobustLoss, Trivial, parse_loss
 from .problem import Problem
 
@@ -43,7 +47,8 @@ class Factor:
         ``residual(*points, jac)`` gets, for each slot ``s``, the points
         ``x[variables[:, s]]`` (batch shape ``(m,)``) and returns the residuals
         ``(m, k)``; with ``jac=True`` it returns ``(r, [J_1, …, J_arity])``,
-        ``J_s`` of shape ``(m, k, d)``: right Jacobians in tangent coordinates.
+        ``J_s`` of shape ``(m, k, d)``: right Jacobians in tangent coordinates
+        (a unary factor may return its ``J_1`` bare).
     loss : RobustLoss, str or None
         Applied to ``‖r‖²`` per edge (IRLS): an instance, ``"huber:1.0"``-style
         text (see :func:`~manopt_lie.optim.losses.parse_loss`) or ``None`` for
@@ -82,6 +87,10 @@ class Linearization:
     residuals: list[FloatArray]
     weights: list[FloatArray]
 
+    def is_finite(self) -> bool:
+        """Whether the cost, the gradient and ``H`` are all finite."""
+        return bool(math.isfinite(self.cost) and np.isfinite(self.grad).all() and np.isfinite(self.hessian.data).all())
+
 
 class LeastSquaresProblem(Problem):
     """``½ Σ ρ(‖r‖²)`` over factor types on ``Power(M, n)``; also a :class:`Problem` whose
@@ -98,9 +107,17 @@ class LeastSquaresProblem(Problem):
     hessian : callable ``(x, v) ↦ Hess f(x)[v]``, optional
         The exact Riemannian Hessian-vector product, for optimizers that use
         :meth:`hess` (the trust region) instead of the Gauss-Newton model.
+
+    Notes
+    -----
+    One problem may be solved from several threads at once: the last
+    linearization is remembered per thread, keyed on the point's value (a
+    private copy compared with ``np.array_equal``), and the structure's
+    workspaces are per thread too. The residual functions must then be
+    thread-safe themselves (pure functions of their arguments are).
     """
 
-    __slots__ = ("_cache", "_dim", "_factors", "_fixed", "_n", "_structure")
+    __slots__ = ("_build_lock", "_dim", "_exact_hessian", "_factors", "_fixed", "_n", "_residual_dims", "_structure")
 
     def __init__(
         self,
@@ -126,7 +143,9 @@ class LeastSquaresProblem(Problem):
         self._fixed = np.zeros(self._n, dtype=bool)
         self._fixed[np.asarray(fixed, dtype=np.int64)] = True
         self._structure: BlockStructure | None = None
-        self._cache: tuple[Any, Linearization] | None = None
+        self._residual_dims: tuple[int, ...] | None = None
+        self._build_lock = threading.Lock()
+        self._exact_hessian = hessian
         rhess = hessian if hessian is not None else self._gauss_newton_product
         super().__init__(manifold, self._evaluate_cost, rgrad=self._evaluate_grad, rhess=rhess)
 
@@ -141,21 +160,53 @@ class LeastSquaresProblem(Problem):
     def _points(self, x: Any, factor: Factor) -> list[Any]:
         return [x[factor.variables[:, s]] for s in range(factor.variables.shape[1])]
 
+    def _check_residual(self, k: int, r: Any, jac: bool) -> None:
+        """Shapes only (no pass over the data): ``(m, residual_dim)``."""
+        f = self._factors[k]
+        dims = self._residual_dims
+        shape = np.shape(r)
+        if len(shape) != 2 or shape[0] != f.variables.shape[0] or (dims is not None and shape[1] != dims[k]):
+            expected = f"({f.variables.shape[0]}, {dims[k] if dims is not None else 'k'})"
+            raise ShapeError(
+                f"{f.name}: residual(jac={jac}) returned residuals of shape {shape}; expected (m, k) = {expected}"
+            )
+
     def _evaluate_cost(self, x: Any) -> float:
         total = 0.0
-        for f in self._factors:
+        for k, f in enumerate(self._factors):
             r = f.residual(*self._points(x, f), jac=False)
+            self._check_residual(k, r, False)
             total += 0.5 * float(np.sum(f.robust_loss.rho(np.einsum("...i,...i->...", r, r))))
         return total
 
     def linearize(self, x: Any) -> Linearization:
-        """Residuals, IRLS weights, cost, gradient and Gauss-Newton Hessian at ``x``
-        (the last one is remembered: points are immutable, so ``x is x_last`` is safe)."""
-        if self._cache is not None and self._cache[0] is x:
-            return self._cache[1]
+        """Residuals, IRLS weights, cost, gradient and Gauss-Newton Hessian at ``x``.
+
+        The last one is remembered per thread, keyed on the value of ``x`` (a
+        private copy of it), so asking again at the same point costs a comparison.
+
+        Raises
+        ------
+        ShapeError
+            If a factor's residuals or Jacobians do not have the shapes
+            ``(m, k)`` and ``(m, k, d)`` (naming the factor).
+        """
+        memo: tuple[Any, Linearization] | None = getattr(self._local, "linearization", None)
+        if memo is not None and same_point(memo[0], x):
+            return memo[1]
+        key = snapshot(x)
         residuals, blocks, weights, cost = [], [], [], 0.0
-        for f in self._factors:
+        for k, f in enumerate(self._factors):
             r, jacobians = f.residual(*self._points(x, f), jac=True)
+            self._check_residual(k, r, True)
+            m, arity, rdim = f.variables.shape[0], f.variables.shape[1], np.shape(r)[1]
+            if arity == 1 and np.ndim(jacobians) == 3:  # a unary factor's one Jacobian, given bare
+                jacobians = [jacobians]
+            if len(jacobians) != arity or any(np.shape(j) != (m, rdim, self._dim) for j in jacobians):
+                raise ShapeError(
+                    f"{f.name}: residual(jac=True) returned Jacobians of shapes "
+                    f"{[np.shape(j) for j in jacobians]}; expected {arity} of shape (m, k, d) = {(m, rdim, self._dim)}"
+                )
             s = np.einsum("...i,...i->...", r, r)
             cost += 0.5 * float(np.sum(f.robust_loss.rho(s)))
             # Fixed variables: zero columns, so their update is exactly zero.
@@ -163,15 +214,52 @@ class LeastSquaresProblem(Problem):
             blocks.append(np.concatenate([j * keep[:, s, None, None] for s, j in enumerate(jacobians)], axis=-1))
             residuals.append(r)
             weights.append(f.robust_loss.weight(s))
-        if self._structure is None:
-            dims = np.full(self._n, self._dim)
-            shapes = [(f.variables, r.shape[-1]) for f, r in zip(self._factors, residuals, strict=True)]
-            self._structure = BlockStructure(dims, shapes)
-        h, g = self._structure.normal_equations(blocks, residuals, weights)
-        h = self._structure.add_diagonal(h, np.repeat(self._fixed, self._dim).astype(np.float64))
+        structure = self._structure or self._build_structure(residuals)
+        h, g = structure.normal_equations(blocks, residuals, weights)
+        h = structure.add_diagonal(h, np.repeat(self._fixed, self._dim).astype(np.float64))
         lin = Linearization(cost, g.reshape(self._n, self._dim), h, residuals, weights)
-        self._cache = (x, lin)
+        self._local.linearization = (key, lin)
         return lin
+
+    def _build_structure(self, residuals: list[FloatArray]) -> BlockStructure:
+        """The sparsity pattern, built once (under a lock: every thread must share one
+        structure, whose ``H`` patterns a solver's symbolic analysis recognizes)."""
+        with self._build_lock:
+            if self._structure is None:
+                dims = np.full(self._n, self._dim)
+                shapes = [(f.variables, r.shape[-1]) for f, r in zip(self._factors, residuals, strict=True)]
+                structure = BlockStructure(dims, shapes)
+                self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
+                self._structure = structure
+            return self._structure
+
+    def validate(self, x: Any, *, hessian: bool = False) -> tuple[float, FloatArray]:
+        """The cost and gradient at ``x`` (one linearization), checked: every factor's
+        residuals and Jacobians of the right shapes and finite, and with ``hessian=True``
+        an exact ``hessian=`` product of the tangent shape (see :meth:`Problem.validate`).
+
+        Raises
+        ------
+        ShapeError, NonFiniteError
+            Naming the factor (and, for a non-finite residual, the edge).
+        """
+        owner = type(self).__name__
+        lin = self.linearize(x)
+        for f, r in zip(self._factors, lin.residuals, strict=True):
+            bad = ~np.isfinite(r).all(axis=-1)
+            if bad.any():
+                e = int(np.argmax(bad))
+                raise NonFiniteError(
+                    f"{owner}: factor {f.name!r} has a non-finite residual at x0 (edge {e}, variables "
+                    f"{f.variables[e].tolist()}: {r[e]})"
+                )
+        if not lin.is_finite():
+            what = "cost" if not math.isfinite(lin.cost) else "gradient or Gauss-Newton matrix (a Jacobian)"
+            raise NonFiniteError(f"{owner}: the {what} is not finite at x0 although every residual is")
+        if hessian and self._exact_hessian is not None:
+            check_result(owner, "hessian", self._exact_hessian(x, lin.grad), (self._n, self._dim),
+                         f"a tangent vector of {self.manifold!r}")  # fmt: skip
+        return lin.cost, lin.grad
 
     def _evaluate_grad(self, x: Any) -> FloatArray:
         return self.linearize(x).grad

@@ -11,6 +11,13 @@ positive factor on the sphere, so its sign, which steers the search, is right.
 
 Everything a search needs from earlier iterations (the previous cost and step)
 is passed in, so one search never leaks into the next.
+
+Both accept only a strict decrease, ``φ(α) < φ(0)``, besides the
+sufficient-decrease test (which, once ``c₁αφ'(0)`` is below the round-off of
+``φ(0)``, an unchanged cost would pass). A trial point whose cost is ``+inf``
+(what :class:`~manopt_lie.optim.optimizer.Run` makes of a ``nan`` or infinite
+cost) fails every test, so the searches backtrack from it; the strong Wolfe
+search treats a trial with a non-finite gradient alike.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ __all__ = [
     "StrongWolfe",
     "armijo",
     "initial_step",
+    "probe_decrease",
     "select_line_search",
 ]
 
@@ -104,7 +112,10 @@ def armijo(
     max_backtracks: int = 30,
     interpolate: bool = False,
 ) -> LineSearchResult:
-    """Backtrack from ``alpha`` until ``f(R_x(α d)) ≤ f₀ + c·α·slope`` (Armijo).
+    """Backtrack from ``alpha`` until ``f(R_x(α d)) ≤ f₀ + c·α·slope`` (Armijo) and ``< f₀``.
+
+    The strict decrease matters once ``c·α·slope`` is below the round-off of ``f₀``:
+    a step that leaves the cost unchanged is no progress, whatever its length.
 
     ``slope = ⟨grad f(x₀), d⟩ < 0`` is the directional derivative and ``d_norm = ‖d‖``. Each
     failed trial multiplies ``α`` by ``contraction`` or, with ``interpolate``, moves it to the
@@ -117,14 +128,31 @@ def armijo(
     for k in range(max_backtracks + 1):
         y = manifold.retr(x0, d * alpha)
         f = cost(y)
-        if f <= f0 + sufficient_decrease * alpha * slope:
+        if f <= f0 + sufficient_decrease * alpha * slope and f < f0:
             return LineSearchResult(y, f, alpha, alpha * d_norm, k + 1, True)
-        if interpolate:  # the failed test makes the quadratic convex
-            q = -slope * alpha * alpha / (2.0 * (f - f0 - slope * alpha))
+        curvature = f - f0 - slope * alpha  # > 0 after the failed test, unless in round-off
+        if interpolate and curvature > 0 and curvature < math.inf:
+            q = -slope * alpha * alpha / (2.0 * curvature)
             alpha = min(max(q, low * alpha), contraction * alpha)
+        elif interpolate:
+            alpha *= low  # f = inf: far beyond any useful step
         else:
             alpha *= contraction
     return LineSearchResult(x0, f0, 0.0, 0.0, max_backtracks + 1, False)
+
+
+def probe_decrease(cost: Callable[[Any], float], manifold: Manifold, x: Any, f: float, g: Any, g_norm: float) -> float:
+    """The decrease ``f − f(y)`` that a fresh Armijo search along ``−g`` finds from a step
+    of unit length (at most ``typical_dist``), 0 if it finds none.
+
+    What steepest descent and conjugate gradients, which have no model of the cost,
+    use to judge a step that collapsed: a decrease above round-off means the
+    collapse was not convergence.
+    """
+    slope = -(g_norm * g_norm)
+    alpha = initial_step(f, None, slope, g_norm, manifold.typical_dist)
+    ls = armijo(cost, manifold, x, f, -g, g_norm, slope, alpha, interpolate=True)
+    return f - ls.fun if ls.success else 0.0
 
 
 class LineSearch(ABC):
@@ -340,10 +368,14 @@ class StrongWolfe(LineSearch):
             return _Trial(alpha, cost(y), math.nan, y)
 
         def with_derivative(t: _Trial) -> _Trial:
+            """``t`` with ``φ'(α)``; a non-finite gradient makes it a failed trial (``f = inf``, ``df = nan``)."""
             nonlocal ngev
             ngev += 1
             g = grad(t.y)
-            return _Trial(t.alpha, t.f, float(np.sum(manifold.inner(t.y, g, manifold.transp(x0, t.y, d)))), t.y, g)
+            df = float(np.sum(manifold.inner(t.y, g, manifold.transp(x0, t.y, d))))
+            if not math.isfinite(df):
+                return _Trial(t.alpha, math.inf, math.nan, t.y, None)
+            return _Trial(t.alpha, t.f, df, t.y, g)
 
         def done(t: _Trial, wolfe: bool) -> LineSearchResult:
             if t.alpha == 0.0:
@@ -351,7 +383,7 @@ class StrongWolfe(LineSearch):
             return LineSearchResult(t.y, t.f, t.alpha, t.alpha * d_norm, nfev, True, t.g, ngev, wolfe)
 
         def decreases(t: _Trial) -> bool:
-            return t.f <= f0 + c1 * t.alpha * slope
+            return t.f <= f0 + c1 * t.alpha * slope and t.f < f0
 
         def curvature_ok(t: _Trial) -> bool:
             return abs(t.df) <= -c2 * slope
@@ -370,6 +402,9 @@ class StrongWolfe(LineSearch):
                 lo, hi = prev, t
                 break
             t = with_derivative(t)
+            if math.isnan(t.df):  # no usable gradient there
+                lo, hi = prev, t
+                break
             if curvature_ok(t):
                 return done(t, True)
             if t.df >= 0:
@@ -398,6 +433,9 @@ class StrongWolfe(LineSearch):
                 hi = t
                 continue
             t = with_derivative(t)
+            if math.isnan(t.df):
+                hi = t
+                continue
             if curvature_ok(t):
                 return done(t, True)
             if t.df * (b - a) >= 0:

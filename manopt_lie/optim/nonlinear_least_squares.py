@@ -8,6 +8,16 @@ or preconditioned conjugate gradients (``linear_solver="pcg"``) — and moves to
 ``R_x(δ)``. A singular system (an unfixed gauge, a variable no factor touches)
 raises :class:`~manopt_lie.linalg.SingularSystemError` rather than taking a
 garbage step.
+
+A trial point whose cost is not finite is rejected (Gauss-Newton backtracks,
+Levenberg-Marquardt raises its damping); so is, for Levenberg-Marquardt, an
+accepted point whose linearization is not finite, where Gauss-Newton stops
+with ``Status.NON_FINITE``. When the step collapses — a step shorter than
+``min_step``, Gauss-Newton's failed line search, the damping past
+``max_damping`` — the run has converged (``Status.STEP_SIZE``) only if the
+Gauss-Newton model at the point predicts no decrease above round-off,
+``ROUNDOFF·max(s, |f|)``; otherwise it ends with ``Status.NO_PROGRESS`` (the
+failed line search keeps ``Status.LINE_SEARCH_FAILED``).
 """
 
 from __future__ import annotations
@@ -19,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from ..linalg import LinearSolver, get_linear_solver
+from ..linalg import LinearSolver, SingularSystemError, get_linear_solver
 from .least_squares_problem import LeastSquaresProblem, Linearization
 from .line_search import armijo
 from .optimizer import Optimizer, Run, StoppingCriteria
@@ -37,6 +47,8 @@ class _Step:
     accepted: bool
     extra: dict[str, float]
     status: Status | None = None
+    stalled: bool = False  # the step collapsed: converged if the model sees no decrease left, else ``status``
+    predicted: float = math.nan  # the Gauss-Newton model's decrease at x, when known
 
 
 @dataclass
@@ -83,33 +95,60 @@ class NonlinearLeastSquares(Optimizer):
         if not isinstance(problem, LeastSquaresProblem):
             raise TypeError(f"{type(self).__name__} needs a LeastSquaresProblem, got {type(problem).__name__}")
         x = x0
-        lin = self._linearize(run, problem, x)
+        run.initial(x0)  # checks the factors' values and shapes at x0
+        lin = problem.linearize(x0)  # the linearization validate made (remembered)
         assert problem.structure is not None  # built by the first linearization
         solver = self.linear_solver.bind(problem.structure)
         f_prev: float | None = None
-        status = Status.CALLBACK if run.record(x, lin.cost, self._norm(lin)) else run.stop_reason()
+        status = Status.CALLBACK if run.record(x, lin.cost, run.norm(x, lin.grad)) else run.stop_reason()
         state = self._initial_state(lin)
         while status is None:
             step = self._step(run, problem, solver, x, lin, state)
             if step.accepted:
-                f_prev, x = lin.cost, step.x
-                lin = self._linearize(run, problem, x)
-            stop = run.record(x, lin.cost, self._norm(lin), step.step, **step.extra)
-            if stop:
+                new = self._linearize(run, problem, step.x)
+                if new.is_finite():
+                    f_prev, x, lin = lin.cost, step.x, new
+                else:
+                    step = self._reject_nonfinite(step, state)
+            if run.record(x, lin.cost, run.norm(x, lin.grad), step.step, **step.extra):
                 status = Status.CALLBACK
-            else:
-                status = step.status or run.stop_reason(f_prev if step.accepted else None)
+                break
+            status = step.status or run.stop_reason(f_prev if step.accepted else None)
+            fallback = step.status if step.stalled else None
+            if status is Status.STEP_SIZE and step.status is None:  # a short accepted step
+                fallback = Status.NO_PROGRESS
+            if fallback is not None:  # the step collapsed: converged only if nothing is left to gain
+                predicted = step.predicted
+                if math.isnan(predicted):
+                    predicted = self._predicted_decrease(problem, solver, lin, run.scale)
+                status = Status.STEP_SIZE if run.stall_status(predicted, lin.cost) is Status.STEP_SIZE else fallback
         return run.result(x, status)
+
+    def _predicted_decrease(
+        self, problem: LeastSquaresProblem, solver: LinearSolver, lin: Linearization, scale: float
+    ) -> float:
+        """``−gᵀδ − ½δᵀHδ`` for the step ``δ`` of :meth:`_model_matrix` at ``lin`` (``nan`` if
+        the system cannot be solved): how much the Gauss-Newton model says is left to gain."""
+        try:
+            delta, _ = self._newton_system_step(solver, self._model_matrix(problem, lin, scale), lin.grad)
+        except SingularSystemError:
+            return math.nan
+        flat, g = delta.reshape(-1), lin.grad.reshape(-1)
+        return -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
+
+    def _model_matrix(self, problem: LeastSquaresProblem, lin: Linearization, scale: float) -> Any:
+        """The matrix whose step judges a collapse (:meth:`_predicted_decrease`): ``H``."""
+        return lin.hessian
+
+    def _reject_nonfinite(self, step: _Step, state: Any) -> _Step:
+        """An accepted point whose linearization is not finite: stop there (Gauss-Newton)."""
+        return _Step(step.x, step.f, math.nan, False, step.extra, Status.NON_FINITE)
 
     @staticmethod
     def _linearize(run: Run, problem: LeastSquaresProblem, x: Any) -> Linearization:
         run.nfev += 1
         run.ngev += 1
         return problem.linearize(x)
-
-    @staticmethod
-    def _norm(lin: Linearization) -> float:
-        return float(np.linalg.norm(lin.grad))
 
     @staticmethod
     def _newton_system_step(solver: LinearSolver, h: Any, g: Any) -> tuple[Any, dict[str, float]]:
@@ -171,7 +210,9 @@ class GaussNewton(NonlinearLeastSquares):
             sufficient_decrease=self.sufficient_decrease, max_backtracks=self.max_backtracks,
         )  # fmt: skip
         if not ls.success:
-            return _Step(x, lin.cost, math.nan, False, {"alpha": 0.0, **extra}, Status.LINE_SEARCH_FAILED)
+            predicted = -slope - 0.5 * float(delta.reshape(-1) @ (lin.hessian @ delta.reshape(-1)))
+            extra = {"alpha": 0.0, **extra}
+            return _Step(x, lin.cost, math.nan, False, extra, Status.LINE_SEARCH_FAILED, True, predicted)
         return _Step(ls.x, ls.fun, ls.step, True, {"alpha": ls.alpha, **extra})
 
 
@@ -226,7 +267,7 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         self, run: Run, problem: LeastSquaresProblem, solver: LinearSolver, x: Any, lin: Linearization, state: Any
     ) -> _Step:
         assert problem.structure is not None
-        scaling = np.clip(lin.hessian.diagonal(), 1e-6, 1e32)
+        scaling = np.clip(lin.hessian.diagonal(), 1e-6 * run.scale, 1e32 * run.scale)
         damped = problem.structure.add_diagonal(lin.hessian, state.lam * scaling)
         delta, extra = self._newton_system_step(solver, damped, lin.grad)
         flat, g = delta.reshape(-1), lin.grad.reshape(-1)
@@ -240,10 +281,30 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         extra["rho"] = rho
         if rho > 0:
             # Floored: after hundreds of successes λ would underflow to 0, and 0·ν = nan on a failure.
-            state.lam = max(state.lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-15)
+            t = min(2.0 * rho - 1.0, 1.0)  # (larger ρ give the floor ⅓ too; ** would overflow)
+            state.lam = max(state.lam * max(1.0 / 3.0, 1.0 - t * t * t), 1e-15)
             state.nu = 2.0
             return _Step(x_new, f_new, float(np.linalg.norm(flat)), True, extra)
+        return self._fail(_Step(x, lin.cost, math.nan, False, extra), state)
+
+    def _fail(self, step: _Step, state: _Damping) -> _Step:
+        """A rejected step: ``λ ← λν, ν ← 2ν``; past ``max_damping`` no step of any size
+        decreases the cost, and the run stops (a collapse, judged by the undamped model)."""
         state.lam *= state.nu
         state.nu *= 2.0
-        # Past max_damping no step of any size decreases the cost.
-        return _Step(x, lin.cost, math.nan, False, extra, Status.STEP_SIZE if state.lam > self.max_damping else None)
+        if state.lam > self.max_damping:
+            return _Step(step.x, step.f, math.nan, False, step.extra, Status.NO_PROGRESS, True)
+        return _Step(step.x, step.f, math.nan, False, step.extra)
+
+    def _reject_nonfinite(self, step: _Step, state: Any) -> _Step:
+        """An accepted point whose linearization is not finite: rejected, the damping raised.
+
+        ``step.x`` is the rejected point; the returned step stays where the run is,
+        which the loop keeps (it only moves on accepted steps)."""
+        return self._fail(_Step(step.x, step.f, math.nan, False, step.extra), state)
+
+    def _model_matrix(self, problem: LeastSquaresProblem, lin: Linearization, scale: float) -> Any:
+        """``H + λ₀D``: the model with the initial damping judges a collapse (``H`` may be singular)."""
+        assert problem.structure is not None
+        scaling = np.clip(lin.hessian.diagonal(), 1e-6 * scale, 1e32 * scale)
+        return problem.structure.add_diagonal(lin.hessian, self.initial_damping * scaling)

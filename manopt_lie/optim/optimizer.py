@@ -5,7 +5,14 @@ Every optimizer is configured in ``__init__`` and run by
 ``logging`` logger ``manopt_lie.optim`` (one DEBUG line per iteration, one INFO
 line at the end) and to the optional callback, which receives an
 :class:`IterationInfo` after every iteration and stops the run by returning
-``True``.
+``True`` (or raising ``StopIteration``).
+
+What every run shares (:class:`Run`): the callbacks' results are checked once,
+at ``x₀`` (:meth:`Problem.validate`); a trial point whose cost is not finite
+counts as ``+inf`` (rejected: a line search backtracks, a trust region
+shrinks); a ``KeyboardInterrupt`` ends the run with ``Status.INTERRUPTED`` and
+the last accepted point; tolerances on costs and gradients are measured in the
+problem's own *cost scale* ``s`` (see :class:`StoppingCriteria`).
 """
 
 from __future__ import annotations
@@ -21,12 +28,17 @@ from typing import Any
 
 import numpy as np
 
+from ._values import safe_norm
 from .problem import Problem
 from .result import History, IterationInfo, OptimizeResult, Status
 
 logger = logging.getLogger("manopt_lie.optim")
 
 Callback = Callable[[IterationInfo], Any]
+
+_EPS = float(np.finfo(float).eps)
+ROUNDOFF = 1e3 * _EPS
+"""Cost changes below ``ROUNDOFF·max(s, |f|)`` are round-off (:meth:`Run.roundoff`)."""
 
 
 @dataclass(frozen=True)
@@ -38,18 +50,33 @@ class StoppingCriteria:
     max_iterations, max_time
         Limits on iterations and on wall time (seconds).
     grad_rtol, grad_atol
-        Stop once ``‖grad f(x)‖ ≤ max(grad_rtol·‖grad f(x₀)‖, grad_atol)``: by
+        Stop once ``‖grad f(x)‖ ≤ max(grad_rtol·‖grad f(x₀)‖, grad_atol·s)``: by
         default a gradient a million times smaller than at the start (relative),
-        or below 1e-12 (absolute, so that a start at a critical point stops at once).
+        or below ``1e-12·s`` (a floor, so that a start at a critical point stops at
+        once), with ``s`` the cost scale below.
     min_step
-        Stop once an accepted step has norm below this (rejected steps record ``nan``).
+        Stop once a step has norm below this (rejected steps record ``nan``) — or,
+        for the trust region, its radius. This stop is success
+        (``Status.STEP_SIZE``) only where the optimizer's model predicts no
+        decrease above round-off, ``ROUNDOFF·max(s, |f|)`` with ``ROUNDOFF = 10³·eps``;
+        otherwise the run ends with ``Status.NO_PROGRESS``.
     rel_cost_decrease
         Stop once an accepted iteration decreases the cost by less than this
-        fraction, ``(f_prev − f) ≤ rel_cost_decrease·max(1, |f_prev|)``
-        (SE-Sync uses 1e-6); 0 disables the test.
+        fraction, ``(f_prev − f) ≤ rel_cost_decrease·max(s, |f_prev|)``
+        (SE-Sync uses 1e-6 with ``s = 1``); 0 disables the test.
 
     Notes
     -----
+    The *cost scale* ``s = min(1, max(|f(x₀)|, ‖grad f(x₀)‖·L))``, with ``L`` the
+    manifold's ``typical_dist``, is the size of the cost at the start (or of its
+    change over a typical distance, should ``f(x₀)`` be near 0), capped at 1.
+    The absolute floors are multiplied by it, so they never exceed their values
+    for a cost of order 1 (``grad_atol`` is then an absolute tolerance, as are
+    the ``1`` of ``max(1, |f|)``), and they shrink with a cost of smaller
+    magnitude: scaling a cost by 1e-300 scales every test with it, and its start
+    does not look critical. A start at an exact critical point (``grad f(x₀) = 0``)
+    still stops at once.
+
     The fields are defined here only: every optimizer takes either a whole
     ``StoppingCriteria`` (``stopping=``) or these fields as keywords, and a
     command line can build its options from ``dataclasses.fields(StoppingCriteria)``,
@@ -63,7 +90,8 @@ class StoppingCriteria:
         metadata={"help": "stop when the gradient norm falls below this fraction of its value at the start"},
     )
     grad_atol: float = field(
-        default=1e-12, metadata={"help": "stop when the gradient norm falls below this absolute value"}
+        default=1e-12,
+        metadata={"help": "stop when the gradient norm falls below this times the cost scale (at most 1)"},
     )
     min_step: float = field(default=1e-12, metadata={"help": "stop when an accepted step is shorter than this"})
     rel_cost_decrease: float = field(
@@ -84,7 +112,17 @@ STOPPING_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(Stoppi
 
 class Run:
     """The bookkeeping of one ``solve``: counted evaluations, history, stopping tests,
-    logging and the callback."""
+    logging, the callback and the cost scale.
+
+    Attributes
+    ----------
+    scale : float
+        The cost scale ``s`` (see :class:`StoppingCriteria`), set by the first record.
+    grad_tol : float
+        ``max(grad_rtol·‖g₀‖, grad_atol·s)``.
+    rejected_nonfinite : int
+        Trial points whose cost was not finite (counted as ``+inf``).
+    """
 
     def __init__(self, name: str, problem: Problem, stopping: StoppingCriteria, callback: Callback | None) -> None:
         self.name, self.problem, self.stopping, self.callback = name, problem, stopping, callback
@@ -93,16 +131,38 @@ class Run:
         self.start = time.perf_counter()
         self._records: list[tuple[float, float, float, float]] = []
         self._extra: dict[str, list[float]] = {}
+        self._x: Any = None  # the last recorded point
         self.grad_tol = math.nan
+        self.scale = 1.0
+        self.rejected_nonfinite = 0
 
     # ---- counted evaluations ------------------------------------------------------
 
+    def initial(self, x0: Any, *, hessian: bool = False) -> tuple[float, Any, float]:
+        """``f(x₀)``, ``g₀ = grad f(x₀)`` and ``‖g₀‖``, every callback's result checked
+        (:meth:`Problem.validate`; with ``hessian`` one Hessian product too).
+
+        Raises
+        ------
+        ShapeError, NonFiniteError, TypeError
+            If a callback returns the wrong shape, ``nan``/``inf`` or not real numbers at ``x₀``.
+        """
+        f, g = self.problem.validate(x0, hessian=hessian)
+        self.nfev += 1
+        self.ngev += 1
+        self.nhev += int(hessian and self.problem.has_hessian)
+        return f, g, self.norm(x0, g)
+
     def cost(self, x: Any) -> float:
+        """``f(x)`` at a trial point; ``+inf`` if it is not finite (``nan``, ``±inf``), so
+        that every acceptance test rejects the point."""
         self.nfev += 1
         f = self.problem.cost(x)
-        if not math.isfinite(f):
-            raise FloatingPointError(f"{self.name}: the cost is {f} at an iterate")
-        return f
+        if math.isfinite(f):
+            return f
+        self.rejected_nonfinite += 1
+        logger.debug("%s: the cost is %s at a trial point: rejected", self.name, f)
+        return math.inf
 
     def grad(self, x: Any) -> Any:
         self.ngev += 1
@@ -113,43 +173,68 @@ class Run:
         return self.problem.hess(x, v)
 
     def norm(self, x: Any, v: Any) -> float:
-        return float(np.sqrt(np.sum(self.manifold.inner(x, v, v))))
+        """``‖v‖_x`` summed over any batch, safe from under- and overflow."""
+        return safe_norm(self.manifold, x, v)
 
     def inner(self, x: Any, u: Any, v: Any) -> float:
         return float(np.sum(self.manifold.inner(x, u, v)))
+
+    def roundoff(self, f: float) -> float:
+        """``ROUNDOFF·max(s, |f|)``: cost changes this small are indistinguishable from round-off."""
+        return ROUNDOFF * max(self.scale, abs(f))
+
+    def stall_status(self, predicted: float, f: float) -> Status:
+        """The status of a step that collapsed at a point of cost ``f`` where the optimizer's
+        model predicts the decrease ``predicted``: ``STEP_SIZE`` (converged to working
+        precision) if that is round-off, else ``NO_PROGRESS`` (``nan`` included)."""
+        return Status.STEP_SIZE if predicted <= self.roundoff(f) else Status.NO_PROGRESS
 
     # ---- iterations ---------------------------------------------------------------
 
     @property
     def nit(self) -> int:
-        return len(self._records) - 1
+        return max(len(self._records) - 1, 0)
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.start
 
     def record(self, x: Any, f: float, grad_norm: float, step: float = math.nan, **extra: float) -> bool:
-        """Record an iterate; ``True`` if the callback asks to stop."""
+        """Record an iterate; ``True`` if the callback asks to stop (returns true or
+        raises ``StopIteration``)."""
         if not self._records:
-            self.grad_tol = max(self.stopping.grad_rtol * grad_norm, self.stopping.grad_atol)
+            self.scale = min(1.0, max(abs(f), grad_norm * self.manifold.typical_dist))
+            self.grad_tol = max(self.stopping.grad_rtol * grad_norm, self.stopping.grad_atol * self.scale)
         now = self.elapsed()
         self._records.append((f, grad_norm, step, now))
+        self._x = x
         for key, value in extra.items():
             self._extra.setdefault(key, [math.nan] * (len(self._records) - 1)).append(value)
         logger.debug("%s %4d  f = %.12g  |grad| = %.3e  step = %.3e", self.name, self.nit, f, grad_norm, step)
         if self.callback is None:
             return False
         info = IterationInfo(self.nit, x, f, grad_norm, step, now, dict(extra))
-        return bool(self.callback(info))
+        try:
+            return bool(self.callback(info))
+        except StopIteration:
+            return True
 
     def stop_reason(self, f_prev: float | None = None) -> Status | None:
-        """The stopping test after the latest record (``f_prev``: the cost before an accepted step)."""
+        """The stopping test after the latest record (``f_prev``: the cost before an accepted step).
+
+        ``Status.STEP_SIZE`` here only says that the step was short; the optimizer
+        decides with its model whether that is convergence (:meth:`stall_status`).
+        """
         s = self.stopping
         f, grad_norm, step, now = self._records[-1]
         if grad_norm <= self.grad_tol:
             return Status.GRADIENT_NORM
         if self.nit > 0 and step < s.min_step:
             return Status.STEP_SIZE
-        if f_prev is not None and s.rel_cost_decrease > 0 and f_prev - f <= s.rel_cost_decrease * max(1.0, abs(f_prev)):
+        if (
+            f_prev is not None
+            and s.rel_cost_decrease > 0
+            and f_prev - f <= s.rel_cost_decrease * max(self.scale, abs(f_prev))
+        ):
             return Status.COST_DECREASE
         if self.nit >= s.max_iterations:
             return Status.MAX_ITERATIONS
@@ -158,16 +243,22 @@ class Run:
         return None
 
     def result(self, x: Any, status: Status) -> OptimizeResult:
+        """The result at ``x``, the last recorded point (``nan`` cost and gradient norm
+        if nothing was recorded: an interrupt during the evaluation at ``x₀``)."""
         records = np.array(self._records, dtype=np.float64).reshape(-1, 4)
         extra = {k: np.array(v + [math.nan] * (len(records) - len(v))) for k, v in self._extra.items()}
         history = History(records[:, 0], records[:, 1], records[:, 2], records[:, 3], extra)
-        f, grad_norm = records[-1, 0], records[-1, 1]
+        f, grad_norm = (records[-1, 0], records[-1, 1]) if len(records) else (math.nan, math.nan)
         res = OptimizeResult(
             x, float(f), float(grad_norm), self.nit, self.nfev, self.ngev, self.nhev,
             self.elapsed(), status, status.value, history,
         )  # fmt: skip
         logger.info("%s: %s", self.name, res)
         return res
+
+    def interrupted(self, x0: Any) -> OptimizeResult:
+        """The result after a ``KeyboardInterrupt``: the last recorded point (``x₀`` if none)."""
+        return self.result(self._x if self._records else x0, Status.INTERRUPTED)
 
 
 class Optimizer(ABC):
@@ -208,10 +299,22 @@ class Optimizer(ABC):
     def solve(self, problem: Problem, x0: Any, callback: Callback | None = None) -> OptimizeResult:
         """Minimize ``problem`` from ``x0``.
 
+        The callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
+        (Ctrl-C) during the run is not raised: ``solve`` returns the last accepted
+        point with ``Status.INTERRUPTED`` (``converged`` false). Non-finite costs
+        at trial points reject them; nothing raises ``FloatingPointError``.
+
         Raises
         ------
         ValueError (a subclass)
-            If ``x0`` is not a finite point of the problem's manifold.
+            If ``x0`` is not a finite point of the problem's manifold
+            (``NotOnManifoldError``, ``ShapeError``), if a callback returns the
+            wrong shape at ``x0`` (``ShapeError``, naming it, with the expected
+            and the actual shape), or if the cost or the gradient is not finite
+            there (``NonFiniteError``).
+        TypeError
+            If ``problem`` is not a :class:`Problem`, or a callback returns
+            something other than real numbers at ``x0``.
         NotImplementedError
             If the problem lacks a derivative the optimizer needs.
         """
@@ -220,7 +323,11 @@ class Optimizer(ABC):
         problem.manifold.check_point(x0, "x0")
         if not problem.has_gradient:
             raise NotImplementedError(f"{type(self).__name__} needs a gradient: build the Problem with egrad or rgrad")
-        return self._solve(Run(type(self).__name__, problem, self.stopping, callback), x0)
+        run = Run(type(self).__name__, problem, self.stopping, callback)
+        try:
+            return self._solve(run, x0)
+        except KeyboardInterrupt:
+            return run.interrupted(x0)
 
     @abstractmethod
     def _solve(self, run: Run, x0: Any) -> OptimizeResult:

@@ -2,12 +2,41 @@
 
 from __future__ import annotations
 
+import math
+import threading
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
+from ..errors import NonFiniteError, ShapeError
 from ..manifolds.base import Manifold, Point, Tangent
+from ._values import check_result, same_point, snapshot, structure
 
 __all__ = ["Problem"]
+
+
+def checked_cost(value: Any, owner: str) -> float:
+    """``value`` as a float if it is a finite real scalar (the cost at ``x₀``).
+
+    Raises
+    ------
+    ShapeError
+        If it is an array of any shape but ``()``.
+    TypeError
+        If it is complex or not a number.
+    NonFiniteError
+        If it is ``nan`` or ``±inf``.
+    """
+    if np.ndim(value) != 0:
+        raise ShapeError(f"{owner}: cost returned shape {np.shape(value)} at x0; a cost is a real scalar, shape ()")
+    kind = np.asarray(value).dtype
+    if kind.kind not in "fiub":  # float, int, unsigned, bool
+        raise TypeError(f"{owner}: cost returned a {type(value).__name__} ({kind}) at x0; it must be a real number")
+    f = float(value)
+    if not math.isfinite(f):
+        raise NonFiniteError(f"{owner}: the cost at x0 is {f}; an optimizer needs a finite cost at its start")
+    return f
 
 
 class Problem:
@@ -23,9 +52,12 @@ class Problem:
       and ``ehess(x, u) = ∇²f̄(x)[u]``.
 
     The callbacks are stored as given. The Euclidean gradient at the most recent
-    point is remembered (keyed on the point's identity: optimizers never mutate
-    points in place), so the many Hessian-vector products of a trust-region
-    step evaluate ``egrad`` once.
+    point is remembered, so the many Hessian-vector products of a trust-region
+    step evaluate ``egrad`` once. The memo is keyed on the point's *value* (a
+    private copy compared with ``np.array_equal``, so a point mutated in place is
+    a new point) and kept per thread, so one problem may be solved from several
+    threads at once (given callbacks that are themselves thread-safe).
+    :meth:`validate` checks every callback's result once, at ``x₀``.
 
     Parameters
     ----------
@@ -49,7 +81,7 @@ class Problem:
         If a callback is not callable.
     """
 
-    __slots__ = ("_cost", "_egrad", "_egrad_cache", "_ehess", "_manifold", "_rgrad", "_rhess")
+    __slots__ = ("_cost", "_egrad", "_ehess", "_local", "_manifold", "_rgrad", "_rhess")
 
     def __init__(
         self,
@@ -80,13 +112,16 @@ class Problem:
         self._manifold = manifold
         self._cost = cost
         self._egrad, self._rgrad, self._ehess, self._rhess = egrad, rgrad, ehess, rhess
-        self._egrad_cache: tuple[Point, Any] | None = None
+        self._local = threading.local()  # per-thread memo of the last Euclidean gradient
 
     def _euclidean_gradient(self, x: Point) -> Any:
         assert self._egrad is not None
-        if self._egrad_cache is None or self._egrad_cache[0] is not x:
-            self._egrad_cache = (x, self._egrad(x))
-        return self._egrad_cache[1]
+        memo: tuple[Any, Any] | None = getattr(self._local, "egrad", None)
+        if memo is not None and same_point(memo[0], x):
+            return memo[1]
+        value = self._egrad(x)
+        self._local.egrad = (snapshot(x), value)
+        return value
 
     def __repr__(self) -> str:
         given = [n for n in ("egrad", "rgrad", "ehess", "rhess") if getattr(self, "_" + n) is not None]
@@ -110,6 +145,53 @@ class Problem:
     def cost(self, x: Point) -> float:
         """``f(x)``."""
         return float(self._cost(x))
+
+    def validate(self, x: Point, *, hessian: bool = False) -> tuple[float, Tangent]:
+        """``f(x)`` and ``grad f(x)``, every callback's result checked: what an optimizer
+        evaluates at ``x₀``, once per run (the hot path checks nothing).
+
+        The cost must be a finite real scalar; ``egrad`` must return an array of
+        the ambient shape (that of ``to_ambient(x, v)``: ``x``'s own for an embedded
+        manifold, the matrix for a Lie group), ``rgrad`` a tangent vector (that of
+        ``zero_vector(x)``), all finite. With ``hessian=True`` (and a Hessian) it also
+        applies the Hessian to ``grad f(x)`` and checks ``ehess`` (ambient) or
+        ``rhess`` (tangent) likewise.
+
+        Returns
+        -------
+        f : float
+        grad : tangent vector
+
+        Raises
+        ------
+        ShapeError
+            Naming the callback, the expected and the actual shape.
+        NonFiniteError
+            If a result holds ``nan`` or ``inf``.
+        TypeError
+            If a result is complex or not a number.
+        NotImplementedError
+            If the problem has no gradient.
+        """
+        m, owner = self._manifold, type(self).__name__
+        f = checked_cost(self._cost(x), owner)
+        zero = m.zero_vector(x)
+        tangent, tangent_what = structure(zero), f"a tangent vector of {m!r} at x0"
+        ambient = structure(m.to_ambient(x, zero))
+        ambient_what = f"the ambient (embedding-space) vector of {m!r} at x0"
+        if self._egrad is not None:
+            check_result(owner, "egrad", self._euclidean_gradient(x), ambient, ambient_what)
+        g = self.grad(x)
+        check_result(owner, "rgrad" if self._rgrad is not None else "egrad2rgrad(egrad)", g, tangent, tangent_what)
+        if hessian and self._ehess is not None:
+            u = m.to_ambient(x, g)
+            h = self._ehess(x, u)
+            check_result(owner, "ehess", h, ambient, ambient_what)
+            h = m.ehess2rhess(x, self._euclidean_gradient(x), h, g)
+            check_result(owner, "ehess2rhess(ehess)", h, tangent, tangent_what)
+        elif hessian and self._rhess is not None:
+            check_result(owner, "rhess", self._rhess(x, g), tangent, tangent_what)
+        return f, g
 
     def grad(self, x: Point) -> Tangent:
         """The Riemannian gradient ``grad f(x)``, a tangent vector at ``x``.

@@ -11,21 +11,35 @@ from numpy.typing import NDArray
 
 
 class Status(Enum):
-    """Why an optimizer stopped."""
+    """Why an optimizer stopped; :attr:`converged` says whether that is success.
+
+    Only the three convergence tests are success. ``STEP_SIZE`` is issued only
+    where it is earned: the step (the trust region, Levenberg-Marquardt's
+    damping) collapsed at a point where the optimizer's model predicts no
+    decrease the cost can resolve; a collapse where the model still promises
+    one — the cost and its derivatives disagree, e.g. a wrong gradient — is
+    ``NO_PROGRESS``.
+    """
 
     GRADIENT_NORM = "the gradient norm fell below the tolerance"
     COST_DECREASE = "the relative cost decrease fell below the tolerance"
-    STEP_SIZE = "the step fell below the tolerance"
+    STEP_SIZE = "the step fell below the tolerance where no further decrease is resolvable"
     MAX_ITERATIONS = "the iteration limit was reached"
     MAX_TIME = "the time limit was reached"
     LINE_SEARCH_FAILED = "the line search found no decrease"
     LINEAR_SOLVER_FAILED = "the linear solver gave no descent direction"
     CALLBACK = "the callback asked to stop"
+    NO_PROGRESS = "the step collapsed although the model predicts a decrease (are the derivatives right?)"
+    NON_FINITE = "the gradient was not finite at a new point; the run stopped at the last finite one"
+    INTERRUPTED = "interrupted (KeyboardInterrupt); the last accepted point is returned"
 
     @property
     def converged(self) -> bool:
         """Whether the stop is a convergence test (gradient, cost decrease or step size)."""
-        return self in (Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE)
+        return self in _CONVERGED
+
+
+_CONVERGED = frozenset({Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE})
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from .optimizer import Optimizer, Run, StoppingCriteria
 from .preconditioners import Preconditioner, bind_preconditioner, check_preconditioner
 from .result import OptimizeResult, Status
@@ -17,13 +15,21 @@ from .result import OptimizeResult, Status
 @dataclass(frozen=True)
 class _InnerResult:
     eta: Any
-    h_eta: Any
+    model_decrease: float  # m(0) − m(η)
     iterations: int
-    reason: str  # "residual", "negative curvature", "boundary" or "max iterations"
+    reason: str  # "residual", "negative curvature", "boundary", "max iterations" or "non-finite"
 
 
 def _identity(x: Any, r: Any) -> Any:
     return r
+
+
+def _power(a: float, b: float) -> float:
+    """``a**b``, ``inf`` on overflow (Python's ``**`` raises ``OverflowError``)."""
+    try:
+        return a**b
+    except OverflowError:
+        return math.inf
 
 
 class TrustRegion(Optimizer):
@@ -36,6 +42,16 @@ class TrustRegion(Optimizer):
     ``t = fd_step/‖v‖`` (as Manopt does), so a cost with a gradient suffices.
     The inner iteration stops at ``‖r_j‖ ≤ ‖r_0‖ min(‖r_0‖^θ, κ)`` (superlinear
     local convergence for ``θ = 1``), on negative curvature or at the boundary.
+    It runs on ``g/‖g‖`` and ``H/‖g‖`` (the same iterates), so that costs of any
+    magnitude neither under- nor overflow.
+
+    A trial point whose cost or gradient is not finite is rejected (the radius
+    shrinks); a non-finite Hessian product ends the run with
+    ``Status.NON_FINITE`` at the current point. When the radius falls below
+    ``min_step``, or an accepted step is shorter, the model is solved once more
+    at the full radius ``Δ̄``: if even that predicts no decrease above
+    round-off the run has converged (``Status.STEP_SIZE``), otherwise the cost
+    and its derivatives disagree (``Status.NO_PROGRESS``).
 
     Parameters
     ----------
@@ -103,40 +119,72 @@ class TrustRegion(Optimizer):
     # ---- truncated CG -------------------------------------------------------------
 
     def _tcg(
-        self, run: Run, x: Any, g: Any, hess: Callable[[Any], Any], radius: float, precon: Preconditioner
+        self,
+        run: Run,
+        x: Any,
+        g: Any,
+        g_norm: float,
+        hess: Callable[[Any], Any],
+        radius: float,
+        precon: Preconditioner,
     ) -> _InnerResult:
-        """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region."""
+        """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region.
+
+        It runs on the system scaled by ``σ = ‖g‖`` (``r₀ = g/σ``, products ``H d/σ``),
+        with the preconditioner rescaled too if ``‖P r₀‖`` is far from 1: the
+        iterates ``η`` and the region are those of the unscaled system, and the
+        model decrease is ``σ·(−⟨r₀, η⟩ − ½⟨η, Hη/σ⟩)``.
+        """
         m = run.manifold
         max_inner = self.max_inner_iterations or max(1, m.dim)
-        eta, h_eta = m.zero_vector(x), m.zero_vector(x)
-        r = g
+        if not g_norm > 0:  # a critical point: the model's minimizer is η = 0
+            return _InnerResult(m.zero_vector(x), 0.0, 0, "residual")
+        inv_sigma = 1.0 / g_norm
+        r0 = g * inv_sigma
+        eta, h_eta = m.zero_vector(x), m.zero_vector(x)  # h_eta = H η / σ
+
+        def result(eta: Any, h_eta: Any, j: int, reason: str) -> _InnerResult:
+            decrease = -g_norm * (run.inner(x, r0, eta) + 0.5 * run.inner(x, eta, h_eta))
+            return _InnerResult(eta, decrease, j, reason)
+
+        r = r0
         z = precon(x, r)
+        z_norm = run.norm(x, z)
+        if not 0.0 < z_norm < math.inf:
+            return _InnerResult(eta, math.nan, 0, "non-finite")
+        # P' = cP gives the same iterates, and ‖η‖²_P' = ‖η‖²_P / c: a P far from unit
+        # scale (a tiny cost's (JᵀJ)⁻¹) is rescaled so that ⟨d, Hd⟩ cannot overflow.
+        c = 1.0 if 1e-100 < z_norm < 1e100 else 1.0 / z_norm
+        if c != 1.0:
+            z = z * c
+        radius_sq = radius * radius / c
         d = -z
         rz = run.inner(x, r, z)
-        r0_norm = run.norm(x, r)
-        target = r0_norm * min(r0_norm**self.theta, self.kappa)
-        e_pe, e_pd, d_pd = 0.0, 0.0, rz  # ⟨η, Pη⟩, ⟨η, Pd⟩, ⟨d, Pd⟩ in the preconditioner's norm
+        target = min(_power(g_norm, self.theta), self.kappa)  # ‖r_j‖/‖r_0‖ at which to stop
+        e_pe, e_pd, d_pd = 0.0, 0.0, rz  # ⟨η, P'⁻¹η⟩, ⟨η, P'⁻¹d⟩, ⟨d, P'⁻¹d⟩: the region's norm
         for j in range(1, max_inner + 1):
-            hd = hess(d)
+            hd = hess(d) * inv_sigma
             d_hd = run.inner(x, d, hd)
+            if not (math.isfinite(d_hd) and math.isfinite(rz)):
+                return _InnerResult(eta, math.nan, j, "non-finite")
             alpha = rz / d_hd if d_hd != 0 else math.inf
-            e_pe_new = e_pe + 2.0 * alpha * e_pd + alpha**2 * d_pd
-            if d_hd <= 0 or e_pe_new >= radius**2:
+            e_pe_new = e_pe + 2.0 * alpha * e_pd + alpha * alpha * d_pd
+            if d_hd <= 0 or e_pe_new >= radius_sq:
                 # Follow d to the boundary: ‖η + τ d‖ = Δ.
-                tau = (-e_pd + math.sqrt(e_pd**2 + d_pd * (radius**2 - e_pe))) / d_pd
+                tau = (-e_pd + math.sqrt(e_pd * e_pd + d_pd * (radius_sq - e_pe))) / d_pd
                 reason = "negative curvature" if d_hd <= 0 else "boundary"
-                return _InnerResult(eta + d * tau, h_eta + hd * tau, j, reason)
+                return result(eta + d * tau, h_eta + hd * tau, j, reason)
             eta, h_eta, e_pe = eta + d * alpha, h_eta + hd * alpha, e_pe_new
             r = r + hd * alpha
             if run.norm(x, r) <= target:
-                return _InnerResult(eta, h_eta, j, "residual")
-            z = precon(x, r)
+                return result(eta, h_eta, j, "residual")
+            z = precon(x, r) if c == 1.0 else precon(x, r) * c
             rz, rz_old = run.inner(x, r, z), rz
             beta = rz / rz_old
             e_pd = beta * (e_pd + alpha * d_pd)
-            d_pd = rz + beta**2 * d_pd
+            d_pd = rz + beta * beta * d_pd
             d = -z + d * beta
-        return _InnerResult(eta, h_eta, max_inner, "max iterations")
+        return result(eta, h_eta, max_inner, "max iterations")
 
     # ---- outer iteration ----------------------------------------------------------
 
@@ -145,29 +193,34 @@ class TrustRegion(Optimizer):
         precon = bind_preconditioner(self.preconditioner, run.problem) or _identity  # this run's own state
         max_radius = self.max_radius or m.typical_dist
         radius = self.initial_radius or max_radius / 8.0
-        x, f = x0, run.cost(x0)
-        g = run.grad(x)
-        g_norm = run.norm(x, g)
+        x = x0
+        f, g, g_norm = run.initial(x0, hessian=run.problem.has_hessian)
         status = Status.CALLBACK if run.record(x, f, g_norm, radius=radius) else run.stop_reason()
         while status is None:
-            inner = self._tcg(run, x, g, self._hessian(run, x, g), radius, precon)
+            inner = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), radius, precon)
+            if inner.reason == "non-finite":
+                status = Status.NON_FINITE
+                break
             x_new = m.retr(x, inner.eta)
-            f_new = run.cost(x_new)
-            model_decrease = -(run.inner(x, g, inner.eta) + 0.5 * run.inner(x, inner.eta, inner.h_eta))
+            f_new = run.cost(x_new)  # inf if not finite: ρ = −inf, rejected
+            model_decrease = inner.model_decrease
             # Regularized ratio: near convergence both decreases drown in round-off.
-            reg = max(1.0, abs(f)) * np.finfo(float).eps * 1e3
+            reg = run.roundoff(f)
             rho = (f - f_new + reg) / (model_decrease + reg)
             eta_norm = run.norm(x, inner.eta)
-            if rho < 0.25:
+            accepted = rho > self.rho_prime and model_decrease > 0
+            if accepted:
+                g_new = run.grad(x_new)
+                g_new_norm = run.norm(x_new, g_new)
+                if not math.isfinite(g_new_norm):  # no usable gradient there: reject it
+                    accepted, rho = False, -math.inf
+            if not rho >= 0.25:
                 radius /= 4.0
             elif rho > 0.75 and inner.reason in ("negative curvature", "boundary"):
                 radius = min(2.0 * radius, max_radius)
-            accepted = rho > self.rho_prime and model_decrease > 0
             f_prev = f
             if accepted:
-                x, f = x_new, f_new
-                g = run.grad(x)
-                g_norm = run.norm(x, g)
+                x, f, g, g_norm = x_new, f_new, g_new, g_new_norm
             stop = run.record(
                 x, f, g_norm, eta_norm if accepted else math.nan,  # nan: no step was taken
                 radius=radius, rho=rho, inner_iterations=inner.iterations, accepted=float(accepted),
@@ -175,4 +228,7 @@ class TrustRegion(Optimizer):
             status = Status.CALLBACK if stop else run.stop_reason(f_prev if accepted else None)
             if status is None and radius < self.stopping.min_step:
                 status = Status.STEP_SIZE
+            if status is Status.STEP_SIZE:  # converged only if the model sees nothing left to gain
+                final = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), max_radius, precon)
+                status = run.stall_status(final.model_decrease, f)
         return run.result(x, status)
