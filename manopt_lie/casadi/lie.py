@@ -339,14 +339,12 @@ class _SymTransform(SymbolicGroup):
 
     @classmethod
     def _assemble(cls, r: Matrix, t: Matrix) -> Matrix:
-        d = cls.point_dim
-        last = ca.horzcat(ca.DM.zeros(1, d), ca.DM.ones(1, 1))
+        last = ca.horzcat(ca.DM.zeros(1, cls.point_dim), ca.DM.ones(1, 1))
         return ca.vertcat(ca.horzcat(r, t), last)
 
     @classmethod
     def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
-        a = cls._element(x, name)
-        d = cls.point_dim
+        a, d = cls._element(x, name), cls.point_dim
         return a[:d, :d], a[:d, d]
 
     @classmethod

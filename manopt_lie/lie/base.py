@@ -9,10 +9,9 @@ A group subclass supplies the *minimal* kernels on raw arrays (``_exp``,
 al., arXiv:1812.01537, eqs. 62–83).
 
 Every ``jac=True`` returns *right* (local) Jacobians (CONVENTIONS §4),
-``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ`` with ``X ⊕ τ = X·Exp(τ)``, vector inputs
-and outputs perturbed additively; ``lplus``/``lminus`` included. Those two also
-give *left* (global-frame) Jacobians on request, ``frame="left"``:
-``J = lim (f(τ ⊕ X) ⊖ₗ f(X)) / τ`` with ``τ ⊕ X = Exp(τ)·X``, related by
+``J = lim_{τ→0} (f(X ⊕ τ) ⊖ f(X)) / τ``, ``X ⊕ τ = X·Exp(τ)``, vectors perturbed
+additively — ``lplus``/``lminus`` too, which also give *left* (global-frame) ones
+with ``frame="left"``, ``J = lim (f(τ ⊕ X) ⊖ₗ f(X)) / τ``, ``τ ⊕ X = Exp(τ)·X``:
 ``J_left = Ad_{f(X)} · J_right · Ad_X⁻¹`` (``Ad`` of a vector space is ``I``).
 Jacobians carry the batch axes of the result: shape ``(..., m, n)``.
 """
@@ -34,12 +33,11 @@ G = TypeVar("G", bound="LieGroup")
 Jac = FloatArray
 Frame = Literal["right", "left"]
 _Diff = tuple[FloatArray, Jac, Jac]  # a tangent difference and its two Jacobians
-_FRAMES = ("right", "left")
 
 
 def _left(frame: str) -> bool:
     """Whether ``frame`` asks for left Jacobians; ``ValueError`` unless it is ``"right"`` or ``"left"``."""
-    if frame not in _FRAMES:
+    if frame not in ("right", "left"):
         raise ValueError(f"frame must be 'right' or 'left', got {frame!r}")
     return frame == "left"
 
@@ -357,8 +355,8 @@ class LieGroup:
     @overload
     def rminus(self, other: LieGroup, jac: Literal[False] = ...) -> FloatArray: ...
     @overload
-    def rminus(self, other: LieGroup, jac: Literal[True]) -> tuple[FloatArray, Jac, Jac]: ...
-    def rminus(self, other: LieGroup, jac: bool = False) -> FloatArray | tuple[FloatArray, Jac, Jac]:
+    def rminus(self, other: LieGroup, jac: Literal[True]) -> _Diff: ...
+    def rminus(self, other: LieGroup, jac: bool = False) -> FloatArray | _Diff:
         """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
         ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 82–83)."""
         x = self._operand(other)
@@ -372,13 +370,10 @@ class LieGroup:
     @overload
     def lplus(self: G, tau: ArrayLike, jac: Literal[True], *, frame: Frame = ...) -> tuple[G, Jac, Jac]: ...
     def lplus(self: G, tau: ArrayLike, jac: bool = False, *, frame: Frame = "right") -> G | tuple[G, Jac, Jac]:
-        """``Y = τ ⊕ X = Exp(τ)·X``; Jacobians wrt ``X`` and ``τ``.
-
-        Right (default): ``J_X = I``, ``J_τ = Ad_Y⁻¹ Jl(τ)``, as
-        ``Exp(τ + δ)·X·Exp(ε) ≈ Y·Exp(ε + Ad_Y⁻¹ Jl(τ) δ)``. ``frame="left"``:
+        """``Y = τ ⊕ X = Exp(τ)·X``; Jacobians wrt ``X`` and ``τ``: right (default) ``J_X = I``,
+        ``J_τ = Ad_Y⁻¹ Jl(τ)``, as ``Exp(τ + δ)·X·Exp(ε) ≈ Y·Exp(ε + Ad_Y⁻¹ Jl(τ) δ)``; ``frame="left"``
         ``J_X = Ad_{Exp τ}``, ``J_τ = Jl(τ)``, as ``Exp(τ + δ)·Exp(ε)·X ≈ Exp(Ad_{Exp τ} ε + Jl(τ) δ)·Y``.
-        Raises ``ValueError`` for any other ``frame``.
-        """
+        Raises ``ValueError`` for any other ``frame``."""
         left = _left(frame)
         t = self._tangent(tau)
         broadcast_batch(self.batch_shape, t.shape[:-1])
@@ -397,12 +392,9 @@ class LieGroup:
     @overload
     def lminus(self, other: LieGroup, jac: Literal[True], *, frame: Frame = ...) -> _Diff: ...
     def lminus(self, other: LieGroup, jac: bool = False, *, frame: Frame = "right") -> FloatArray | _Diff:
-        """``τ = Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other``; Jacobians wrt ``Y`` and ``X``.
-
-        Right (default): ``J_Y = Jl(τ)⁻¹ Ad_Y``, ``J_X = −Jr(τ)⁻¹ Ad_X``. ``frame="left"``
-        (along ``Exp(ε)·Y`` and ``Exp(ε)·X``): ``J_Y = Jl(τ)⁻¹``, ``J_X = −Jr(τ)⁻¹``.
-        Raises ``ValueError`` for any other ``frame``.
-        """
+        """``τ = Y ⊖ₗ X = Log(Y·X⁻¹)`` for ``Y = self``, ``X = other``; Jacobians wrt ``Y`` and ``X``:
+        right (default) ``J_Y = Jl(τ)⁻¹ Ad_Y``, ``J_X = −Jr(τ)⁻¹ Ad_X``; ``frame="left"`` (along ``Exp(ε)·Y``,
+        ``Exp(ε)·X``) ``J_Y = Jl(τ)⁻¹``, ``J_X = −Jr(τ)⁻¹``. Raises ``ValueError`` for any other ``frame``."""
         left = _left(frame)
         x = self._operand(other)
         tau = self._blocks(lambda b, a: self._log(self._compose(b, self._inverse(a))), self._data, x)
