@@ -35,7 +35,8 @@ Rotation parametrizations (translations are plain ``t ∈ Rᵈ``):
     instances with quaternions (iteration limit, divergence) and none with matrices, and
     needed about half the iterations with matrices.
 
-Every ``x/sin x``-like coefficient is its Taylor series below a threshold and the closed
+Every ``x/sin x``-like coefficient comes from :mod:`manopt_lie.lie._series` (the one source the
+numpy kernels and the CasADi twins share): its Taylor series below a threshold and the closed
 form, on a *safe* argument, above it (CasADi's ``if_else`` zeroes the unused branch, but a
 ``0·∞`` inside it would still poison reverse-mode derivatives), so the objective has finite
 first and second derivatives at zero residual. Residual rotations by exactly ``π`` (the cut
@@ -59,6 +60,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from manopt_lie.casadi.lie import half_cot, jinv_coef
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie._matrix import assemble
 from manopt_lie.lie.base import LieGroup
@@ -66,7 +68,7 @@ from manopt_lie.optim.losses import RobustLoss, Trivial, parse_loss
 
 from .. import costs
 from ..graph import MeasurementGraph
-from .rotations import _cross, _half_cot, _jl_inv_coefficient, _rho, _Rotations, rotations
+from .rotations import _cross, _rho, _Rotations, rotations
 
 __all__ = ["PARAMETRIZATIONS", "ReferenceNLP", "ReferenceResult", "build_nlp", "reference_solve"]
 
@@ -241,11 +243,11 @@ def _edge_function(spec: MeasurementGraph, cost: str, rot: _Rotations, loss: Rob
             # t_e = R̃ᵀ (R_iᵀ (t_j − t_i) − t̃), ρ = V(θ)⁻¹ t_e (SE(2)) or Jl(θ)⁻¹ t_e (SE(3)).
             t = z_rot.T @ (rot.matrix(ri).T @ (xj[rot.size :] - xi[rot.size :]) - rest[:d])
             if d == 2:
-                a, b = _half_cot(theta), 0.5 * theta
+                a, b = half_cot(theta2, theta), 0.5 * theta
                 rho = ca.vertcat(a * t[0] + b * t[1], a * t[1] - b * t[0])
             else:
                 wt = _cross(theta, t)
-                rho = t - 0.5 * wt + _jl_inv_coefficient(theta2) * _cross(theta, wt)
+                rho = t - 0.5 * wt + jinv_coef(theta2) * _cross(theta, wt)
             r = ca.vertcat(rho, theta)
         omega = ca.reshape(rest[-weights:], k_tan, k_tan)
         s = r.T @ omega @ r

@@ -11,47 +11,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from manopt_lie import SO2, SO3
+from manopt_lie.casadi.lie import atan2_ratio
 from manopt_lie.lie._matrix import project_rotation
 from manopt_lie.optim.losses import L1, Cauchy, GemanMcClure, Huber, RobustLoss, Trivial, TruncatedL2
 
 FloatArray = NDArray[np.float64]
 
 # ---- scalar helpers, safe at zero residual ----------------------------------------------
-
-
-def _series(t: Any, coefficients: tuple[float, ...]) -> Any:
-    """``Σ_k c_k tᵏ`` (Horner)."""
-    out = coefficients[-1]
-    for c in coefficients[-2::-1]:
-        out = out * t + c
-    return out
-
-
-def _atan2_ratio(s2: Any, c: Any) -> Any:
-    """``g = atan2(s, c)/s`` with ``s = √s2``: ``g·a`` is the rotation vector when ``a = sin θ u``,
-    ``c ∝ cos θ``. Series ``(1/c)(1 − x²/3 + x⁴/5)``, ``x² = s2/c²``, below ``x² = 1e-6`` (c > 0)."""
-    small = ca.logic_and(c > 0, s2 < 1e-6 * c * c)
-    c_safe = ca.if_else(small, c, 1.0)
-    s_safe = ca.sqrt(ca.if_else(small, 1.0, ca.fmax(s2, 1e-300)))
-    series = _series(s2 / (c_safe * c_safe), (1.0, -1.0 / 3.0, 1.0 / 5.0)) / c_safe
-    return ca.if_else(small, series, ca.atan2(s_safe, c) / s_safe)
-
-
-def _jl_inv_coefficient(theta2: Any) -> Any:
-    """``β = 1/θ² − cot(θ/2)/(2θ)``, the ``[θ]×²`` coefficient of ``Jl(θ)⁻¹`` (CONVENTIONS §3)."""
-    small = theta2 < 1e-4
-    theta = ca.sqrt(ca.if_else(small, 1.0, theta2))
-    closed = 1.0 / (theta * theta) - ca.cos(0.5 * theta) / (2.0 * theta * ca.sin(0.5 * theta))
-    return ca.if_else(small, _series(theta2, (1.0 / 12.0, 1.0 / 720.0, 1.0 / 30240.0)), closed)
-
-
-def _half_cot(theta: Any) -> Any:
-    """``(θ/2) cot(θ/2)``, the diagonal of SE(2)'s ``V(θ)⁻¹``."""
-    theta2 = theta * theta
-    small = theta2 < 1e-4
-    safe = ca.if_else(small, 1.0, theta)
-    closed = 0.5 * safe * ca.cos(0.5 * safe) / ca.sin(0.5 * safe)
-    return ca.if_else(small, _series(theta2, (1.0, -1.0 / 12.0, -1.0 / 720.0, -1.0 / 30240.0)), closed)
 
 
 def _rho(loss: RobustLoss, s: Any) -> Any:
@@ -138,7 +104,7 @@ class _MatrixRotations(_Rotations):
             return theta * theta, theta
         a = 0.5 * ca.vertcat(e[2, 1] - e[1, 2], e[0, 2] - e[2, 0], e[1, 0] - e[0, 1])
         s2, c = ca.dot(a, a), 0.5 * (ca.trace(e) - 1.0)
-        g = _atan2_ratio(s2, c)
+        g = atan2_ratio(s2, c)
         return s2 * g * g, g * a
 
     def pack(self, r: FloatArray) -> FloatArray:
@@ -174,7 +140,7 @@ class _UnitRotations(_Rotations):
         e = _qmul(_qmul(meas * conj, ri * conj), rj)
         v, w = e[:3], e[3]
         s2, c = ca.dot(v, v), ca.fabs(w)
-        g = 2.0 * _atan2_ratio(s2, c)
+        g = 2.0 * atan2_ratio(s2, c)
         return s2 * g * g, ca.sign(w) * g * v
 
     def pack(self, r: FloatArray) -> FloatArray:
