@@ -90,23 +90,34 @@ def check_result(owner: str, name: str, value: Any, expected: Any, what: str) ->
         raise NonFiniteError(f"{owner}: {name} returned non-finite values (nan or inf) at x0")
 
 
-def snapshot(x: Any) -> Any:
-    """A private, unchangeable copy of the point ``x`` for :func:`same_point`.
+class _Element:
+    """A snapshot of a group element: its class and a private copy of its array."""
 
-    Group elements are immutable and kept as they are; arrays are copied;
-    tuples (product points) are snapshot part by part.
+    __slots__ = ("cls", "data")
+
+    def __init__(self, x: LieGroup) -> None:
+        self.cls, self.data = type(x), np.array(x.data, copy=True)
+
+
+def snapshot(x: Any) -> Any:
+    """A private copy of the point ``x``'s value, for :func:`same_point`.
+
+    Arrays and group elements are copied (an element's array can be made writeable
+    and changed in place, so not even its identity proves its value); tuples
+    (product points) are snapshot part by part.
     """
     if isinstance(x, LieGroup):
-        return x
+        return _Element(x)
     if isinstance(x, tuple):
         return tuple(snapshot(p) for p in x)
     return np.array(x, copy=True)
 
 
 def same_point(snap: Any, x: Any) -> bool:
-    """Whether ``x`` has the value recorded in ``snap`` (by :func:`snapshot`)."""
-    if isinstance(snap, LieGroup):
-        return x is snap or (type(x) is type(snap) and (x.data is snap.data or np.array_equal(x.data, snap.data)))
+    """Whether ``x`` has the value recorded in ``snap`` (by :func:`snapshot`): one
+    ``np.array_equal`` per array, cheap beside any evaluation it saves."""
+    if isinstance(snap, _Element):
+        return type(x) is snap.cls and bool(np.array_equal(x.data, snap.data))
     if isinstance(snap, tuple):
         return isinstance(x, tuple) and len(x) == len(snap) and all(map(same_point, snap, x))
     if isinstance(x, (LieGroup, tuple)):

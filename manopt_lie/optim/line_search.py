@@ -131,12 +131,12 @@ def armijo(
         if f <= f0 + sufficient_decrease * alpha * slope and f < f0:
             return LineSearchResult(y, f, alpha, alpha * d_norm, k + 1, True)
         curvature = f - f0 - slope * alpha  # > 0 after the failed test, unless in round-off
-        if interpolate and curvature > 0 and curvature < math.inf:
+        if interpolate and 0 < curvature < math.inf:
             q = -slope * alpha * alpha / (2.0 * curvature)
             alpha = min(max(q, low * alpha), contraction * alpha)
-        elif interpolate:
-            alpha *= low  # f = inf: far beyond any useful step
-        else:
+        elif interpolate and curvature <= 0:
+            alpha *= low
+        else:  # f = inf (not finite) says nothing about the curvature: contract
             alpha *= contraction
     return LineSearchResult(x0, f0, 0.0, 0.0, max_backtracks + 1, False)
 

@@ -174,7 +174,10 @@ class GaussNewton(NonlinearLeastSquares):
     A direction that is not one of descent, ``gᵀδ ≥ 0``, is never taken: with an
     exact solve it arises only at ``g = 0`` (stop with ``Status.STEP_SIZE``);
     otherwise the linear solver failed (``Status.LINEAR_SOLVER_FAILED``). No
-    decrease along ``δ`` stops the run with ``Status.LINE_SEARCH_FAILED``.
+    decrease along ``δ`` stops the run: converged (``Status.STEP_SIZE``) if the
+    model's decrease ``−gᵀδ − ½δᵀHδ`` is round-off, ``Status.LINE_SEARCH_FAILED``
+    otherwise. Trial points whose cost is not finite are backtracked from; a new
+    point whose linearization is not finite ends the run with ``Status.NON_FINITE``.
     ``history.extra["alpha"]`` is the accepted ``α``.
 
     Parameters
@@ -218,7 +221,8 @@ class GaussNewton(NonlinearLeastSquares):
 
 class LevenbergMarquardt(NonlinearLeastSquares):
     """``(H + λD) δ = −g`` with Marquardt's scaling ``D = diag(H)`` (clipped to
-    ``[1e-6, 1e32]`` as Ceres does), accepted when the gain ratio
+    ``[1e-6·s, 1e32·s]``, ``s`` the cost scale of
+    :class:`~manopt_lie.optim.StoppingCriteria`: Ceres's bounds for ``s = 1``), accepted when the gain ratio
     ``ρ = (f(x) − f(R_x(δ))) / (−gᵀδ − ½δᵀHδ)`` is positive.
 
     The denominator is the decrease of the Gauss-Newton model; for an exact
@@ -229,8 +233,10 @@ class LevenbergMarquardt(NonlinearLeastSquares):
 
     Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
     ``ν ← 2`` (``λ`` at least 1e-15); on failure ``λ ← λν``, ``ν ← 2ν``; past
-    ``max_damping`` no step of any size decreases the cost and the run stops
-    with ``Status.STEP_SIZE``. Since ``D`` carries the scale
+    ``max_damping`` no step of any size decreases the cost and the run stops:
+    converged (``Status.STEP_SIZE``) if the model with ``λ₀`` predicts only
+    round-off, ``Status.NO_PROGRESS`` otherwise. A trial cost or a new
+    linearization that is not finite counts as a failure. Since ``D`` carries the scale
     of ``H``, ``λ`` is dimensionless and starts at ``initial_damping``, by default
     1e-6. Pose graphs' normal equations are ill-conditioned (condition 10⁸–10¹¹):
     there Ceres's ``10⁻⁴`` freezes the weak directions for several iterations and

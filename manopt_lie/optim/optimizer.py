@@ -302,7 +302,9 @@ class Optimizer(ABC):
         The callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
         (Ctrl-C) during the run is not raised: ``solve`` returns the last accepted
         point with ``Status.INTERRUPTED`` (``converged`` false). Non-finite costs
-        at trial points reject them; nothing raises ``FloatingPointError``.
+        at trial points reject them; nothing raises ``FloatingPointError``, and
+        NumPy's overflow/invalid/divide warnings are silenced for the run's duration
+        (its callbacks' included): what they would flag is handled.
 
         Raises
         ------
@@ -325,7 +327,10 @@ class Optimizer(ABC):
             raise NotImplementedError(f"{type(self).__name__} needs a gradient: build the Problem with egrad or rgrad")
         run = Run(type(self).__name__, problem, self.stopping, callback)
         try:
-            return self._solve(run, x0)
+            # Non-finite values are handled (rejected, or reported by a status or an error),
+            # so NumPy's warnings about producing them would only be noise.
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                return self._solve(run, x0)
         except KeyboardInterrupt:
             return run.interrupted(x0)
 

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ..linalg import CholeskySolver, block_jacobi
+from ._values import same_point, snapshot
 from .least_squares_problem import LeastSquaresProblem
 from .problem import Problem
 
@@ -87,18 +88,18 @@ def bind_preconditioner(
 
 
 class _PerPoint(ABC):
-    """Built from ``G = JᵀWJ`` at ``x``, rebuilt when ``x`` changes: optimizers never
-    mutate points, so the identity of ``x`` marks a new outer iteration."""
+    """Built from ``G = JᵀWJ`` at ``x``, rebuilt when the value of ``x`` changes (a new
+    outer iteration; keyed on a private copy, like the problem's own caches)."""
 
     def __init__(self, problem: LeastSquaresProblem) -> None:
         self._problem = problem
         self._x: Any = None
 
     def __call__(self, x: Any, r: Any) -> NDArray[np.float64]:
-        if self._x is not x:
+        if self._x is None or not same_point(self._x, x):
             self._x = None  # a failed rebuild leaves nothing stale behind
             self._build(self._problem.linearize(x).hessian)
-            self._x = x
+            self._x = snapshot(x)
         r_ = np.asarray(r)
         return self._apply(r_.reshape(-1)).reshape(r_.shape)
 

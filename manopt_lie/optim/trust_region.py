@@ -7,6 +7,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from ._values import structure
 from .optimizer import Optimizer, Run, StoppingCriteria
 from .preconditioners import Preconditioner, bind_preconditioner, check_preconditioner
 from .result import OptimizeResult, Status
@@ -127,20 +128,24 @@ class TrustRegion(Optimizer):
         hess: Callable[[Any], Any],
         radius: float,
         precon: Preconditioner,
+        reproject: bool = False,
     ) -> _InnerResult:
         """Steihaug–Toint truncated CG on ``m(η)`` in the (preconditioned) trust region.
 
         It runs on the system scaled by ``σ = ‖g‖`` (``r₀ = g/σ``, products ``H d/σ``),
         with the preconditioner rescaled too if ``‖P r₀‖`` is far from 1: the
         iterates ``η`` and the region are those of the unscaled system, and the
-        model decrease is ``σ·(−⟨r₀, η⟩ − ½⟨η, Hη/σ⟩)``.
+        model decrease is ``σ·(−⟨r₀, η⟩ − ½⟨η, Hη/σ⟩)``. With ``reproject`` (tangent
+        vectors that are ambient arrays: embedded manifolds) ``r₀`` is projected onto
+        the tangent space again: near convergence the round-off of ``proj(∇f)``, relative
+        to ``‖g‖``, is no longer small, and CG cannot reduce a normal component.
         """
         m = run.manifold
         max_inner = self.max_inner_iterations or max(1, m.dim)
         if not g_norm > 0:  # a critical point: the model's minimizer is η = 0
             return _InnerResult(m.zero_vector(x), 0.0, 0, "residual")
         inv_sigma = 1.0 / g_norm
-        r0 = g * inv_sigma
+        r0 = (m.proj(x, g) if reproject else g) * inv_sigma
         eta, h_eta = m.zero_vector(x), m.zero_vector(x)  # h_eta = H η / σ
 
         def result(eta: Any, h_eta: Any, j: int, reason: str) -> _InnerResult:
@@ -195,9 +200,11 @@ class TrustRegion(Optimizer):
         radius = self.initial_radius or max_radius / 8.0
         x = x0
         f, g, g_norm = run.initial(x0, hessian=run.problem.has_hessian)
+        zero = m.zero_vector(x0)
+        reproject = structure(m.to_ambient(x0, zero)) == structure(zero)  # tangents are ambient arrays
         status = Status.CALLBACK if run.record(x, f, g_norm, radius=radius) else run.stop_reason()
         while status is None:
-            inner = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), radius, precon)
+            inner = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), radius, precon, reproject)
             if inner.reason == "non-finite":
                 status = Status.NON_FINITE
                 break
@@ -229,6 +236,6 @@ class TrustRegion(Optimizer):
             if status is None and radius < self.stopping.min_step:
                 status = Status.STEP_SIZE
             if status is Status.STEP_SIZE:  # converged only if the model sees nothing left to gain
-                final = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), max_radius, precon)
+                final = self._tcg(run, x, g, g_norm, self._hessian(run, x, g), max_radius, precon, reproject)
                 status = run.stall_status(final.model_decrease, f)
         return run.result(x, status)
