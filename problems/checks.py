@@ -105,8 +105,8 @@ class LintReport:
         lines = [head]
         if self.overflow.size:
             what = _count(self.overflow.size, "information matrix", "information matrices")
-            items = (f"{i}→{j}" for i, j in self.overflow_ids)
-            lines.append(f"  {what} beyond double precision (eigenvalues overflow): {_some(items)}")
+            names = (f"{i}→{j}" for i, j in self.overflow_ids)
+            lines.append(f"  {what} beyond double precision (eigenvalues overflow): {_some(names)}")
         if self.indefinite.size:
             items = [
                 f"{i}→{j} (λmin {lam:.3g})"
@@ -209,26 +209,29 @@ def eigenvalues(info: FloatArray) -> tuple[FloatArray, IntArray, IntArray]:
     if not m:
         empty = np.zeros(0, dtype=np.int64)
         return np.zeros(0), empty, empty
-    finite = np.isfinite(info).all(axis=(1, 2))
-    scale = np.where(finite, np.abs(np.where(np.isfinite(info), info, 0.0)).max(axis=(1, 2)), 1.0)
-    scale = np.where(scale > 0.0, scale, 1.0)  # a zero matrix: its eigenvalues are 0 anyway
-    unit = np.where(finite[:, None, None], info, 0.0) / scale[:, None, None]
-    asymmetric = np.flatnonzero(finite & (np.abs(unit - np.swapaxes(unit, 1, 2)).max(axis=(1, 2)) > 1e-12))
+    finite: NDArray[np.bool_] = np.asarray(np.isfinite(info).all(axis=(1, 2)))
+    clean = np.where(finite[:, None, None], info, 0.0)  # non-finite matrices: nan eigenvalues below
+    scale = np.abs(clean).max(axis=(1, 2))
+    scale[scale == 0.0] = 1.0  # a zero matrix: its eigenvalues are 0 anyway
+    unit = clean / scale[:, None, None]
+    asymmetric = np.flatnonzero(np.abs(unit - np.swapaxes(unit, 1, 2)).max(axis=(1, 2)) > 1e-12)
+    sym = 0.5 * (unit + np.swapaxes(unit, 1, 2))
     try:
-        lam_unit = np.linalg.eigvalsh(0.5 * (unit + np.swapaxes(unit, 1, 2)))
-    except np.linalg.LinAlgError:  # pragma: no cover  # entries in [-1, 1]: not seen; one by one then
-        lam_unit = np.stack([_eigvalsh_or_nan(a) for a in 0.5 * (unit + np.swapaxes(unit, 1, 2))])
+        lam_unit = np.linalg.eigvalsh(sym)
+    except np.linalg.LinAlgError:  # pragma: no cover  # entries in [-1, 1]: never seen; one by one then
+        lam_unit = np.stack([_eigvalsh_or_nan(a) for a in sym])
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):
         lam_all = lam_unit * scale[:, None]
     usable = finite & np.isfinite(lam_unit).all(axis=1)
     overflow = np.flatnonzero(~(usable & np.isfinite(lam_all).all(axis=1)))
-    # Definiteness is read on the scaled matrix (an underflow of λ·scale to 0 does not count).
-    lam = np.where(usable, np.where(lam_unit[:, 0] > 0.0, np.maximum(lam_all[:, 0], 5e-324), lam_all[:, 0]), np.nan)
+    # Definiteness is read on the scaled matrix: an underflow of λ·scale to 0 does not count.
+    smallest = np.where(lam_unit[:, 0] > 0.0, np.maximum(lam_all[:, 0], 5e-324), lam_all[:, 0])
+    lam = np.asarray(np.where(usable, smallest, np.nan), dtype=np.float64)
     return lam, asymmetric, overflow
 
 
 def _eigvalsh_or_nan(a: FloatArray) -> FloatArray:  # pragma: no cover  # see eigenvalues
     try:
-        return np.linalg.eigvalsh(a)
+        return np.asarray(np.linalg.eigvalsh(a), dtype=np.float64)
     except np.linalg.LinAlgError:
         return np.full(len(a), np.nan)

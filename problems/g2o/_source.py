@@ -55,7 +55,10 @@ def open_source(path_or_file: PathOrFile) -> tuple[str, str, Callable[[], Chunks
     default = Path(filename).stem if has_name else "g2o"
 
     def from_stream() -> Chunks:
-        first = path_or_file.read(BLOCK)
+        try:
+            first = path_or_file.read(BLOCK)
+        except UnicodeDecodeError as e:  # a text stream that cannot decode its first block
+            first = _Bad(_undecodable(e))
         if isinstance(first, bytes):
             pieces = _decoded(path_or_file.read, first)  # type: ignore[arg-type]
         else:
@@ -97,13 +100,18 @@ def _text(stream: IO[str], first: str) -> Iterator[str]:
     """The pieces of a text stream; a decoding error of the stream becomes a :class:`_Bad`
     (the stream decodes blocks, so the bad line is this one or one of the next few)."""
     piece = first
-    while piece:
+    while piece and not isinstance(piece, _Bad):
         yield piece
         try:
             piece = stream.read(BLOCK)
         except UnicodeDecodeError as e:
-            yield _Bad(f"the text stream cannot decode this line or one of the next ({e.reason}){_BINARY}")
-            return
+            piece = _Bad(_undecodable(e))
+    if piece:
+        yield piece
+
+
+def _undecodable(e: UnicodeDecodeError) -> str:
+    return f"the text stream cannot decode this line or one of the next ({e.reason}){_BINARY}"
 
 
 def _lines(pieces: Iterator[str], filename: str) -> Chunks:
