@@ -113,7 +113,15 @@ def check_last_row(m: FloatArray, tol: float, name: str) -> None:
 
 
 def project_rotation(m: FloatArray) -> FloatArray:
-    """Nearest rotation in Frobenius norm: ``U diag(1, …, 1, det(UVᵀ)) Vᵀ`` of ``M = U S Vᵀ``."""
+    """Nearest rotation in Frobenius norm: ``U diag(1, …, 1, det(UVᵀ)) Vᵀ`` of ``M = U S Vᵀ``.
+
+    A matrix whose largest entry is outside ``[1e-100, 1e100]`` is divided by it first (the
+    polar factor does not change under positive scaling), so that the SVD sees neither
+    overflow nor underflow. The zero matrix projects to the identity.
+    """
+    big = np.abs(m).max(axis=(-2, -1), keepdims=True)
+    m = m / np.where((big >= 1e-100) & (big <= 1e100), 1.0, np.where(big == 0.0, 1.0, big))
+    m = np.where(big == 0.0, np.eye(m.shape[-1]), m)
     u, _, vt = np.linalg.svd(m)
     d = np.sign(np.linalg.det(u @ vt))
     d = np.where(d == 0, 1.0, d)

@@ -1,6 +1,12 @@
 """SE(2) kernels on arrays: homogeneous ``(..., 3, 3)``, tangents ``(ρx, ρy, θ)``.
 
 Formulas: Solà et al. (arXiv:1812.01537), Appendix C.
+
+Angles of any finite size are accepted: ``sin``/``cos`` of a huge angle are finite (NumPy
+reduces the argument exactly, though an angle whose ulp exceeds 2π, ``|θ| ≳ 1e16``, has no
+physical meaning), and ``θ²``, ``θ³`` overflowing inside the coefficients only drives terms
+that are ``O(1/θ)`` to ``0`` — hence the ``errstate(over="ignore")`` on the kernels that
+take an angle from a tangent.
 """
 
 from __future__ import annotations
@@ -34,6 +40,10 @@ def _v_inverse_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
     return _series.half_cot(np.abs(theta)), 0.5 * theta
 
 
+_quiet = np.errstate(over="ignore")
+
+
+@_quiet
 def exp(tau: FloatArray) -> FloatArray:
     """``[[R(θ), V(θ) ρ], [0, 1]]``."""
     theta = tau[..., 2]
@@ -58,6 +68,7 @@ def adjoint(m: FloatArray) -> FloatArray:
     return out
 
 
+@_quiet
 def jr(tau: FloatArray) -> FloatArray:
     """Right Jacobian::
 
@@ -77,6 +88,7 @@ def jr(tau: FloatArray) -> FloatArray:
     return out
 
 
+@_quiet
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[M⁻¹, −M⁻¹ w], [0, 1]]`` of ``Jr = [[M, w], [0, 1]]``, with
     ``M⁻¹ = [[(θ/2)cot(θ/2), −θ/2], [θ/2, (θ/2)cot(θ/2)]]``."""

@@ -37,6 +37,43 @@ def log(m: FloatArray) -> FloatArray:
     return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
 
 
+def _outer(a: FloatArray, b: FloatArray) -> FloatArray:
+    return a[..., :, None] * b[..., None, :]
+
+
+def _scalar(x: FloatArray) -> FloatArray:
+    return x[..., None, None]
+
+
+def _q_sum(rho: FloatArray, v: FloatArray, k: tuple[FloatArray, ...]) -> FloatArray:
+    """``k₀ρ^ + k₁v^ + k₂(vρᵀ + ρvᵀ) + k₃(v wᵀ − w vᵀ) − k₄ vvᵀ + k₅ I`` with ``w = v × ρ``."""
+    k0, k1, k2, k3, k4, k5 = k
+    w = np.cross(v, rho)
+    tr = _outer(v, rho)
+    return (
+        _scalar(k0) * _so3.hat(rho)
+        + _scalar(k1) * _so3.hat(v)
+        + _scalar(k2) * (tr + np.swapaxes(tr, -1, -2))
+        + _scalar(k3) * (_outer(v, w) - _outer(w, v))
+        - _scalar(k4) * _outer(v, v)
+        + _scalar(k5) * np.eye(3)
+    )
+
+
+def _q_matrix_huge(rho: FloatArray, theta: FloatArray) -> FloatArray:
+    """:func:`q_matrix` for ``|θ| ≥ HUGE``, with ``θ = 2h·u`` and the scaled coefficients
+    ``C₁ = c₁θ² = 1 − sin h cos h/h``, ``c₁θ = C₁/(2h)``, ``C₂ = c₂θ² = ½ − (sin h/h)²/2``,
+    ``C₃ = c₃θ³ = (2 + cos θ)/(4h) − ¾ (sin h/h)(cos h/h)``, ``d_u = u·ρ``."""
+    u, h, s, c = _so3.polar(theta)
+    c1 = 1.0 - s * c / h
+    c1h = c1 / (2.0 * h)
+    c2 = 0.5 - 0.5 * (s / h) ** 2
+    c3 = 0.25 * (2.0 + c * c - s * s) / h - 0.75 * (s / h) * (c / h)
+    du = np.einsum("...i,...i->...", u, rho)
+    return _q_sum(rho, u, (0.5 - 2.0 * c2, (3.0 * c2 - c1) * du, c1h, c2, 2.0 * c3 * du, 2.0 * (c3 - c1h) * du))
+
+
+@_so3.scale_safe(_q_matrix_huge, angle=1)
 def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     """Barfoot's ``Q(ρ, θ)``, the top-right block of ``Jl(ρ, θ)`` (Solà eq. 180)::
 
@@ -50,28 +87,15 @@ def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
 
         Q = (½ − 2c₂s) ρ^ + (3c₂ − c₁) d θ^ + c₁(ρθᵀ + θρᵀ) + c₂(θuᵀ − uθᵀ)
               − 2c₃ d θθᵀ + 2d (c₃s − c₁) I
+
+    Angles beyond ``_so3.HUGE`` use the same sum with ``θ`` replaced by its axis and the
+    coefficients scaled accordingly (:func:`_q_matrix_huge`).
     """
     s = np.einsum("...i,...i->...", theta, theta)
     d = np.einsum("...i,...i->...", theta, rho)
     angle = np.sqrt(s)
     c1, c2, c3 = _series.sinc3(angle), _series.q_coef2(angle), _series.q_coef3(angle)
-    u = np.cross(theta, rho)
-
-    def outer(a: FloatArray, b: FloatArray) -> FloatArray:
-        return a[..., :, None] * b[..., None, :]
-
-    def scalar(x: FloatArray) -> FloatArray:
-        return x[..., None, None]
-
-    tr = outer(theta, rho)
-    return (
-        scalar(0.5 - 2.0 * c2 * s) * _so3.hat(rho)
-        + scalar((3.0 * c2 - c1) * d) * _so3.hat(theta)
-        + scalar(c1) * (tr + np.swapaxes(tr, -1, -2))
-        + scalar(c2) * (outer(theta, u) - outer(u, theta))
-        - scalar(2.0 * c3 * d) * outer(theta, theta)
-        + scalar(2.0 * d * (c3 * s - c1)) * np.eye(3)
-    )
+    return _q_sum(rho, theta, (0.5 - 2.0 * c2 * s, (3.0 * c2 - c1) * d, c1, c2, 2.0 * c3 * d, 2.0 * d * (c3 * s - c1)))
 
 
 def _block_upper(diagonal: FloatArray, corner: FloatArray) -> FloatArray:

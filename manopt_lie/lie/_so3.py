@@ -6,10 +6,19 @@ Appendix B; Barfoot, "State Estimation for Robotics", §7.1.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import wraps
+from typing import Any
+
 import numpy as np
 
 from . import _series
 from ._checks import FloatArray
+
+# Angles beyond HUGE are routed to the scale-safe forms below: otherwise the closed forms'
+# powers θ³…θ⁵, the discarded series' powers of θ² and ``|θ|²`` itself overflow (from θ ≈ 1e25
+# on) and turn into nan. Such angles have no physical meaning (the ulp of 1e20 is 16384 rad).
+HUGE = 1e20
 
 
 def hat(w: FloatArray) -> FloatArray:
@@ -34,13 +43,95 @@ def _norm(w: FloatArray) -> FloatArray:
     return np.sqrt(np.einsum("...i,...i->...", w, w))
 
 
+# ---- huge angles: every kernel below stays finite for any finite tangent -------------------
+
+
+def polar(w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``(u, h, sin h, cos h)`` with ``w = 2h·u``, ``|u| = 1``, computed without overflow.
+
+    ``w`` is scaled by its largest component first, and ``h = θ/2`` (not ``θ``) is formed,
+    which stays below the largest float for every finite ``w``. ``sin``/``cos`` reduce ``h``
+    modulo the exact ``π`` (NumPy's argument reduction), so the rotation of a huge angle is
+    the one its floating-point value denotes — though an angle whose ulp exceeds 2π
+    (``θ ≳ 1e16``) carries no physical meaning.
+    """
+    m = np.abs(w).max(axis=-1)
+    v = w / m[..., None]
+    n = _norm(v)
+    h = 0.5 * m * n
+    return v / n[..., None], h, np.sin(h), np.cos(h)
+
+
+def scale_safe(huge: Callable[..., FloatArray], angle: int = 0) -> Callable[[Any], Any]:
+    """Decorate a kernel of rotation vectors so that rows with ``|θ| ≥ HUGE`` go to ``huge``.
+
+    ``args[angle]`` is the rotation vector; all arguments are vectors ``(..., 3)``. The
+    common path (no huge row) is the kernel itself, unchanged; otherwise the huge rows are
+    zeroed for the kernel (no overflow, no warning) and recomputed by ``huge`` on their own.
+    """
+
+    def decorate(kernel: Callable[..., FloatArray]) -> Callable[..., FloatArray]:
+        @wraps(kernel)
+        def f(*args: FloatArray) -> FloatArray:
+            w = args[angle]
+            big = ~(np.einsum("...i,...i->...", w, w) < HUGE * HUGE)  # inf (overflow) included
+            if not big.any():
+                return kernel(*args)
+            batch = np.broadcast_shapes(*(a.shape[:-1] for a in args))
+            full = [np.broadcast_to(a, batch + a.shape[-1:]) for a in args]
+            big = np.broadcast_to(big, batch)
+            safe = list(full)
+            safe[angle] = np.where(big[..., None], 0.0, full[angle])
+            out = np.array(kernel(*safe))
+            out[big] = huge(*(a[big] for a in full))
+            return out
+
+        return f
+
+    return decorate
+
+
+def _exp_huge(w: FloatArray) -> FloatArray:
+    """``Exp`` through the quaternion ``(sin(θ/2) u, cos(θ/2))``."""
+    u, _, s, c = polar(w)
+    return from_quaternion(np.concatenate([s[..., None] * u, c[..., None]], axis=-1))
+
+
+def _jl_apply_huge(w: FloatArray, v: FloatArray) -> FloatArray:
+    """``v + (1 − cos θ)/θ u×v + (1 − sin θ/θ) u×(u×v)``, with ``h = θ/2``: ``sin²h/h``, ``1 − sin h cos h/h``."""
+    u, h, s, c = polar(w)
+    uv, uuv = _cross_terms(u, v)
+    return v + (s * s / h)[..., None] * uv + (1.0 - s * c / h)[..., None] * uuv
+
+
+def _jl_inv_apply_huge(w: FloatArray, v: FloatArray) -> FloatArray:
+    """``v − (θ/2) u×v + (1 − (θ/2)cot(θ/2)) u×(u×v)``."""
+    u, h, s, c = polar(w)
+    uv, uuv = _cross_terms(u, v)
+    return v - h[..., None] * uv + (1.0 - h * c / s)[..., None] * uuv
+
+
+def _jr_huge(w: FloatArray) -> FloatArray:
+    """``I − (1 − cos θ)/θ [u]× + (1 − sin θ/θ) [u]×²``."""
+    u, h, s, c = polar(w)
+    return _i_plus(-s * s / h, 1.0 - s * c / h, u)
+
+
+def _jr_inv_huge(w: FloatArray) -> FloatArray:
+    """``I + (θ/2)[u]× + (1 − (θ/2)cot(θ/2)) [u]×²``."""
+    u, h, s, c = polar(w)
+    return _i_plus(h, 1.0 - h * c / s, u)
+
+
+@scale_safe(_exp_huge)
 def exp(w: FloatArray) -> FloatArray:
     """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×``.
 
     All coefficients come from one ``sin``/``cos`` pair of ``θ/2``:
     ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``
     (:data:`_series.SINC_HALF`), which has no cancellation, so its series
-    ``½ − θ²/48 + θ⁴/3840`` is needed only below ``θ = 1e-4``.
+    ``½ − θ²/48 + θ⁴/3840`` is needed only below ``θ = 1e-4``. Angles beyond
+    :data:`HUGE` go through the quaternion of :func:`polar` (see :func:`scale_safe`).
     """
     flat = w.reshape(-1, 3)  # 1-D components, so the in-place updates below have arrays to update
     x, y, z = flat[:, 0], flat[:, 1], flat[:, 2]
@@ -131,6 +222,7 @@ def _cross_terms(w: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
     return wv, np.cross(w, wv)
 
 
+@scale_safe(_jl_apply_huge)
 def jl_apply(w: FloatArray, v: FloatArray) -> FloatArray:
     """``Jl(w) v = v + (1 − cos θ)/θ² w×v + (θ − sin θ)/θ³ w×(w×v)`` (eq. 145)."""
     theta = _norm(w)
@@ -138,6 +230,7 @@ def jl_apply(w: FloatArray, v: FloatArray) -> FloatArray:
     return v + _series.cosc(theta)[..., None] * wv + _series.sinc3(theta)[..., None] * wwv
 
 
+@scale_safe(_jl_inv_apply_huge)
 def jl_inv_apply(w: FloatArray, v: FloatArray) -> FloatArray:
     """``Jl(w)⁻¹ v = v − ½ w×v + (1/θ² − (1+cos θ)/(2θ sin θ)) w×(w×v)`` (eq. 146)."""
     theta = _norm(w)
@@ -152,12 +245,14 @@ def _i_plus(a: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
     return np.eye(3) + a[..., None, None] * k + b[..., None, None] * k2
 
 
+@scale_safe(_jr_huge)
 def jr(w: FloatArray) -> FloatArray:
     """``Jr(θ) = I − (1 − cos θ)/θ² [θ]× + (θ − sin θ)/θ³ [θ]×²`` (eq. 143)."""
     theta = _norm(w)
     return _i_plus(-_series.cosc(theta), _series.sinc3(theta), w)
 
 
+@scale_safe(_jr_inv_huge)
 def jr_inv(w: FloatArray) -> FloatArray:
     """``Jr(θ)⁻¹ = I + ½[θ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [θ]×²`` (eq. 144)."""
     theta = _norm(w)

@@ -52,6 +52,10 @@ def _eye(n: int, batch: tuple[int, ...]) -> FloatArray:
     return np.array(np.broadcast_to(np.eye(n), batch + (n, n)))
 
 
+def _unsupplied(*_: Any) -> Any:
+    raise NotImplementedError("a kernel this group does not supply")
+
+
 class LieGroup:
     """A batch of elements of a matrix Lie group, wrapping one read-only array.
 
@@ -132,6 +136,18 @@ class LieGroup:
     @classmethod
     def _matrix_to_data(cls, m: ArrayLike) -> ArrayLike:
         return m
+
+    def validate(self: G, tol: float = _matrix.DEFAULT_TOL, name: str | None = None) -> G:
+        """``self``, after checking its stored array as :meth:`from_matrix` does: finite, and in
+        the group within ``tol`` — for elements that did not come through a constructor
+        (``check_point`` of a manifold, data unpickled or wrapped by hand).
+
+        Raises
+        ------
+        NonFiniteError, NotInGroupError
+        """
+        self._checked(self._data, project=False, tol=tol, name=name or type(self).__name__)
+        return self
 
     def as_matrix(self) -> FloatArray:
         """The matrix form, shape ``(..., k, k)`` (a read-only view where stored as such)."""
@@ -433,65 +449,12 @@ class LieGroup:
         against the batch axes."""
         return self.rplus(np.asarray(s, dtype=np.float64)[..., None] * other.rminus(self))
 
-    # ---- kernels every group supplies ---------------------------------------------
+    # ---- kernels every group supplies (on raw arrays; see the module docstring) -------
+    # static: _exp(tau), _log(data), _compose(a, b), _inverse(a), _act(a, p),
+    #   _act_jac(a, p) -> (J_x, J_p), _adjoint(a), _jr(tau), _jr_inv(tau), _hat(tau), _vee(m);
+    # class methods: _identity(batch), _random(rng, batch), _project(a) and
+    #   _validated(a, tol, name), which checks ``a`` is in the group within ``tol`` and polishes it.
 
-    @staticmethod
-    def _exp(tau: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _log(data: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _compose(a: FloatArray, b: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _inverse(a: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _act(a: FloatArray, p: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _act_jac(a: FloatArray, p: FloatArray, /) -> tuple[FloatArray, FloatArray]:
-        raise NotImplementedError
-
-    @staticmethod
-    def _adjoint(a: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _jr(tau: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _jr_inv(tau: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _hat(tau: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @staticmethod
-    def _vee(m: FloatArray, /) -> FloatArray:
-        raise NotImplementedError
-
-    @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        raise NotImplementedError
-
-    @classmethod
-    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
-        raise NotImplementedError
-
-    @classmethod
-    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
-        """``a`` checked to be in the group within ``tol``, then polished onto it exactly."""
-        raise NotImplementedError
-
-    @classmethod
-    def _project(cls, a: FloatArray) -> FloatArray:
-        raise NotImplementedError
+    _exp = _log = _compose = _inverse = _act = _act_jac = _adjoint = staticmethod(_unsupplied)
+    _jr = _jr_inv = _hat = _vee = staticmethod(_unsupplied)
+    _identity = _random = _validated = _project = classmethod(_unsupplied)

@@ -21,6 +21,12 @@ T = TypeVar("T", bound="_TransformGroup")
 __all__ = ["SO2", "SO3", "SE2", "SE3"]
 
 
+def _refuse(bad: np.ndarray, why: str) -> None:
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0]) if bad.ndim else ()
+        raise NotInGroupError(f"from_quaternion: quaternion at batch index {idx} is {why}")
+
+
 class _RotationGroup(LieGroup):
     """SO(n) stored as ``(..., n, n)`` rotation matrices."""
 
@@ -171,15 +177,24 @@ class SO3(_RotationGroup):
         """Rotations from Hamilton quaternions ``(x, y, z, w)`` (scalar last), ``(..., 4)``.
 
         The quaternion must have unit norm within ``tol`` unless ``normalize=True``;
-        it is normalized either way, so the result is exactly orthonormal.
+        it is normalized either way, so the result is exactly orthonormal. Normalization is
+        scale-safe: a quaternion whose largest component is outside ``[1e-100, 1e100]`` is
+        divided by that component first, so that its squares neither underflow nor overflow.
+
+        Raises
+        ------
+        NotInGroupError
+            For a non-unit quaternion without ``normalize=True``, and for a zero quaternion.
         """
         quat = as_batch(q, (4,), "q")
+        big = np.abs(quat).max(axis=-1, keepdims=True)
+        _refuse(big[..., 0] == 0.0, "zero")
+        scale = np.where((big >= 1e-100) & (big <= 1e100), 1.0, big)
+        quat = quat / scale  # exact where scale = 1: the plain path, bit for bit
         norm = np.linalg.norm(quat, axis=-1, keepdims=True)
-        bad = (norm[..., 0] == 0.0) if normalize else (np.abs(norm[..., 0] - 1.0) > tol)
-        if bad.any():
-            idx = tuple(int(i) for i in np.argwhere(bad)[0]) if bad.ndim else ()
-            why = "zero" if normalize else f"not unit (| |q| - 1 | > {tol:g}); pass normalize=True"
-            raise NotInGroupError(f"from_quaternion: quaternion at batch index {idx} is {why}")
+        if not normalize:
+            off = ~(np.abs(norm * scale - 1.0)[..., 0] <= tol)
+            _refuse(off, f"not unit (| |q| - 1 | > {tol:g}); pass normalize=True")
         return cls._wrap(_so3.from_quaternion(quat / norm))
 
     def as_quaternion(self) -> FloatArray:
