@@ -140,7 +140,8 @@ class Run:
 
     def initial(self, x0: Any, *, hessian: bool = False) -> tuple[float, Any, float]:
         """``f(x₀)``, ``g₀ = grad f(x₀)`` and ``‖g₀‖``, every callback's result checked
-        (:meth:`Problem.validate`; with ``hessian`` one Hessian product too).
+        (:meth:`Problem.validate`; with ``hessian`` one Hessian product too, which
+        ``nhev`` does not count: the optimizer does not use it).
 
         Raises
         ------
@@ -148,9 +149,8 @@ class Run:
             If a callback returns the wrong shape, ``nan``/``inf`` or not real numbers at ``x₀``.
         """
         f, g = self.problem.validate(x0, hessian=hessian)
-        self.nfev += 1
+        self.nfev += 1  # the optimizer uses f(x₀) and g₀; the check's Hessian product is not counted
         self.ngev += 1
-        self.nhev += int(hessian and self.problem.has_hessian)
         return f, g, self.norm(x0, g)
 
     def cost(self, x: Any) -> float:
