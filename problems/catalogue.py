@@ -101,10 +101,10 @@ class Entry:
         if made != self.problem and made != PoseGraph.kind:  # only pose graphs convert to other kinds
             raise CatalogueError(f"{where}: the {self.generator} generator makes a {made} problem, not {self.problem}")
         kind = KINDS[self.problem]
-        if self.costs is None:
-            object.__setattr__(self, "costs", kind.bench_costs)
-        bad = [c for c in self.costs if c not in kind.graph.costs]
-        if not self.costs or bad:
+        costs = kind.bench_costs if self.costs is None else self.costs
+        object.__setattr__(self, "costs", costs)
+        bad = [c for c in costs if c not in kind.graph.costs]
+        if not costs or bad:
             raise CatalogueError(f"{where}: costs must be a non-empty subset of {kind.graph.costs}, got {bad}")
         for cost, value in self.published.items():
             if cost not in self.costs or not isinstance(value, int | float) or not math.isfinite(value):

@@ -58,7 +58,7 @@ class MeasurementGraph(ABC):
     """What the vertices are, for messages (``"poses"``)."""
     costs: ClassVar[tuple[str, ...]]
     """The costs this kind offers; the first is the default."""
-    initializations: ClassVar[tuple[str, ...]] = ("chordal", "odometry", "file")
+    initializations: ClassVar[tuple[str, ...]] = ("chordal", "odometry", "random", "file")
     """The names :meth:`initialize` takes."""
 
     group: type[LieGroup]
@@ -269,14 +269,17 @@ class MeasurementGraph(ABC):
 
     # ---- initializations -----------------------------------------------------------
 
-    def initialize(self, method: str = "chordal") -> LieGroup:
+    def initialize(self, method: str = "chordal", *, seed: int | None = None) -> LieGroup:
         """An initial estimate by name: ``"chordal"`` (:meth:`chordal_initialization`),
-        ``"odometry"`` (:meth:`odometry_initialization`) or ``"file"`` (the source's
+        ``"odometry"`` (:meth:`odometry_initialization`), ``"random"``
+        (:meth:`random_initialization` from ``seed``) or ``"file"`` (the source's
         :attr:`estimates`)."""
         if method == "chordal":
             return self.chordal_initialization()
         if method == "odometry":
             return self.odometry_initialization()
+        if method == "random":
+            return self.random_initialization(seed)
         if method == "file":
             if self.estimates is None:
                 raise ValueError(f"{self.name} has no vertex estimates (no VERTEX lines): initialize otherwise")
@@ -288,6 +291,22 @@ class MeasurementGraph(ABC):
         if self.estimates is None:
             return x
         return self.estimates[self.anchor] @ x[self.anchor].inverse() @ x  # type: ignore[no-any-return]
+
+    def random_initialization(self, seed: int | np.random.Generator | None = None) -> LieGroup:
+        """Haar-random rotations and, with translations, Gaussian translations of the scale of
+        the graph (``σ = n^{1/d}`` times the median measured translation length), with the anchor
+        at its source estimate — the start from which local solvers find spurious minima and
+        certifiable ones must not."""
+        rng = np.random.default_rng(seed)
+        x = self.group.random(rng, (self.n,))
+        if self.has_translations:
+            z = self.measurements.as_matrix()
+            length = float(np.median(np.linalg.norm(z[:, : self.d, self.d], axis=1))) if self.m else 1.0
+            matrices = np.array(x.as_matrix())
+            matrices[:, : self.d, self.d] = rng.standard_normal((self.n, self.d)) * (length * self.n ** (1 / self.d))
+            x = self.group.from_matrix(matrices)
+        x = x[self.anchor].inverse() @ x  # the anchor at the identity, then in the source's frame
+        return self._in_source_frame(x)
 
     def odometry_initialization(self) -> LieGroup:
         """Measurements composed along a spanning tree from the anchor that prefers

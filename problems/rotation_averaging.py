@@ -64,7 +64,7 @@ class RotationAveraging(MeasurementGraph):
     name: str = "rotation averaging"
     rotations: LieGroup | None = None
     source: PoseGraph | None = None
-    ids: IntArray = field(default=None, repr=False)  # type: ignore[assignment]
+    ids: IntArray = field(default=None, repr=False)  # type: ignore[arg-type]  # default 0..n-1
     fixed: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64), repr=False)
     edge_lines: IntArray | None = field(default=None, repr=False)
 
@@ -89,7 +89,7 @@ class RotationAveraging(MeasurementGraph):
         return self.rotations
 
     @property
-    def information(self) -> FloatArray:
+    def information(self) -> FloatArray:  # type: ignore[override]  # a field in the base's other kinds
         """``Ω_e = κ_e I``: the geodesic cost is ``½ Σ κ‖Log(R̃⁻¹R_iᵀR_j)‖²``."""
         return self.kappa[:, None, None] * np.eye(self.group.dim)
 

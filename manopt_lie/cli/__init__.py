@@ -6,12 +6,16 @@
 - ``manopt-lie bench``: a suite of catalogue instances × optimizers, optional peers and
   the IPOPT reference (:mod:`.bench`).
 
-Bad arguments and bad input files end with a one-line ``manopt-lie <command>: error: …``
-on stderr and exit code 2.
+Exit codes (in every ``--help``): 0 success, 1 not converged (or a run failed), 2 bad
+arguments or input — one line ``manopt-lie <command>: error: …`` on stderr, and with
+``--json`` a JSON ``{"error": …}`` on stdout —, 130 interrupted (nothing written), 141
+when the reader of the output went away.
 """
 
 from __future__ import annotations
 
+import errno
+import os
 import sys
 from collections.abc import Sequence
 
@@ -37,12 +41,34 @@ def build_parser() -> _common.Parser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the exit code (0, or 2 for bad arguments or input)."""
+    """Run the command line; return the exit code (see the module doc)."""
     args = build_parser().parse_args(argv)
     try:
-        args.run(args)
-    except (ValueError, OSError, ImportError) as error:  # bad input: files, arguments, missing extras
-        message = " ".join(str(error).split())
-        print(f"manopt-lie {args.command}: error: {message}", file=sys.stderr)
-        return _common.EXIT_USAGE
-    return 0
+        return int(args.run(args))
+    except KeyboardInterrupt:
+        print(f"manopt-lie {args.command}: interrupted", file=sys.stderr)
+        return _common.EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader left (``| head``): say nothing, and keep Python from complaining at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return _common.EXIT_BROKEN_PIPE
+    except MemoryError:
+        return _fail(args, "out of memory", _common.EXIT_NOT_CONVERGED)
+    except OSError as error:
+        # A file that could not be written whole (full disk, file-size limit) is a failure of the
+        # run, not of its input; the atomic writes left the previous file in place.
+        code = _common.EXIT_NOT_CONVERGED if error.errno in _WRITE_ERRORS else _common.EXIT_USAGE
+        return _fail(args, " ".join(str(error).split()), code)
+    except (ValueError, ImportError) as error:  # bad input: files, arguments, missing extras
+        return _fail(args, " ".join(str(error).split()), _common.EXIT_USAGE)
+
+
+_WRITE_ERRORS = {errno.EFBIG, errno.ENOSPC, errno.EDQUOT, errno.EIO}
+
+
+def _fail(args: object, message: str, code: int) -> int:
+    command = getattr(args, "command", "")
+    print(f"manopt-lie {command}: error: {message}", file=sys.stderr)
+    if getattr(args, "json", False):
+        _common.print_json({"error": message, "exit_code": code})
+    return code

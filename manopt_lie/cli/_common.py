@@ -1,19 +1,34 @@
-"""What every ``manopt-lie`` command shares: the argument parser's manners, the stopping-rule
-flags (generated from :class:`~manopt_lie.optim.StoppingCriteria`, whose fields are defined
-once), the progress display and file writing."""
+"""What every ``manopt-lie`` command shares: the argument parser's manners, the exit codes,
+the stopping-rule flags (generated from :class:`~manopt_lie.optim.StoppingCriteria`, whose
+fields are defined once), the progress display, JSON and file writing."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
+import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from manopt_lie.atomic import atomic_write, check_writable
 from manopt_lie.optim import StoppingCriteria
 
+EXIT_OK = 0
+EXIT_NOT_CONVERGED = 1
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141
+
+EXIT_CODES = f"""exit codes:
+  {EXIT_OK}    success: solve converged; bench and demo ran every run
+  {EXIT_NOT_CONVERGED}    solve ran but did not converge, or a run failed
+  {EXIT_USAGE}    bad arguments or input (one line on stderr, or a JSON error with --json)
+  {EXIT_INTERRUPTED}  interrupted (Ctrl-C): nothing is written
+  {EXIT_BROKEN_PIPE}  the reader of the output went away (as for any Unix tool killed by SIGPIPE)"""
 
 
 class UsageError(ValueError):
@@ -21,9 +36,17 @@ class UsageError(ValueError):
 
 
 class Parser(argparse.ArgumentParser):
-    """Usage errors in one line with exit code 2."""
+    """Usage errors in one line with exit code 2 (a JSON error on stdout when ``--json`` is
+    among the arguments); the exit codes in every ``--help``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("epilog", EXIT_CODES)
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
+        if "--json" in sys.argv[1:]:
+            print_json({"error": f"{message}", "exit_code": EXIT_USAGE})
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see --help)\n")
 
 
@@ -93,7 +116,40 @@ def progress(quiet: bool) -> Any:
                     console=Console(stderr=True), transient=True)  # fmt: skip
 
 
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float (anywhere inside lists and dicts) turned into
+    ``None``: JSON has no nan or inf."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def json_text(document: Any, **options: Any) -> str:
+    """Valid JSON for ``document`` (:func:`json_safe` first)."""
+    return json.dumps(json_safe(document), allow_nan=False, **options)
+
+
+def print_json(document: Any) -> None:
+    print(json_text(document), flush=True)
+
+
+def output_path(path: Path | None, what: str, *, inputs: Sequence[Path] = (), force: bool = False) -> Path | None:
+    """Check an output path before any work: writable (:func:`~manopt_lie.atomic.check_writable`)
+    and — unless ``force`` — not one of the ``inputs`` (the same file by any name)."""
+    if path is None:
+        return None
+    for source in inputs:
+        if path.exists() and source.exists() and os.path.samefile(path, source) and not force:
+            raise UsageError(f"{what} {path} is the input file; pass --force to overwrite it")
+    return check_writable(path, what)
+
+
 def write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path``, creating its directory."""
+    """Write ``text`` to ``path`` atomically, creating its directory."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+    with atomic_write(path, newline="\n") as f:
+        f.write(text)

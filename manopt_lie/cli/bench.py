@@ -5,7 +5,6 @@ JSON, a markdown report and plots."""
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -66,6 +65,7 @@ def _run_suite(entries: Sequence[Entry], args: argparse.Namespace, *, optimizers
         if not peer_adapters.available(peer):
             raise _common.UsageError(f"peer {peer} is not installed: pip install {peer_adapters.PEERS[peer].module}")
     for entry in entries:
+        entry.check_size()
         path = entry.path(data_dir)
         if path is not None and not path.is_file():
             raise _common.UsageError(f"instance {entry.name}: no such file {path} (set --data-dir or MANOPT_LIE_DATA)")
@@ -103,12 +103,12 @@ def _publish(result: SuiteResult, settings: Settings, args: argparse.Namespace, 
     paths = _plots(result, plot_dir) if plot_dir is not None else []
     document = report.document(result.runs, settings)
     if out is not None:
-        _common.write_text(out, json.dumps(document, indent=1, allow_nan=False))
+        _common.write_text(out, _common.json_text(document, indent=1))
     if report_path is not None:
         text = report.markdown(result.runs, settings, title=title, plots=paths, base=report_path.parent)
         _common.write_text(report_path, text)
     if args.json:
-        print(json.dumps(document, allow_nan=False))
+        _common.print_json(document)
         return
     report.print_table(result.runs, title=title)
     written = [p for p in (out, report_path) if p is not None] + paths
@@ -117,18 +117,24 @@ def _publish(result: SuiteResult, settings: Settings, args: argparse.Namespace, 
         print(f"wrote {len(written)} files: {shown}" + (" …" if len(written) > 4 else ""))
 
 
-def run_demo(args: argparse.Namespace) -> None:
+def run_demo(args: argparse.Namespace) -> int:
+    _common.output_path(args.out_dir / "results.json", "--out-dir")
     settings, result = _run_suite(SUITES["demo"], args, optimizers=tuple(OPTIMIZERS), peers=(), reference=False,
                                   repeat=1, data_dir=None)  # fmt: skip
     out = args.out_dir
     _publish(result, settings, args, title="manopt-lie demo", out=out / "results.json",
              report_path=out / "report.md", plot_dir=out)  # fmt: skip
+    return _common.EXIT_OK
 
 
-def run_bench(args: argparse.Namespace) -> None:
+def run_bench(args: argparse.Namespace) -> int:
     entries = load_suite(args.suite)
+    _common.output_path(args.out, "--out")
+    _common.output_path(args.report, "--report")
+    _common.output_path(None if args.plots is None else args.plots / "performance-profile.png", "--plots")
     peers = [p for group in args.peers for p in PEER_GROUPS[group]]
     settings, result = _run_suite(entries, args, optimizers=args.optimizers, peers=peers, reference=args.reference,
                                   repeat=args.repeat, data_dir=args.data_dir)  # fmt: skip
     _publish(result, settings, args, title=f"manopt-lie bench --suite {args.suite}", out=args.out,
              report_path=args.report, plot_dir=args.plots)  # fmt: skip
+    return _common.EXIT_OK

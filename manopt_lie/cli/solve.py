@@ -10,12 +10,11 @@ The command knows problems only through the
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-from manopt_lie.optim import OPTIMIZERS, get_optimizer
+from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer
 from manopt_lie.problems import KINDS, MeasurementGraph, g2o, get_kind
 
 from . import _common
@@ -38,25 +37,38 @@ def add_parser(commands: Any) -> None:
     solve.add_argument("--optimizer", choices=tuple(OPTIMIZERS), default="tr",
                        help=f"{optimizers} (default: %(default)s)")
     solve.add_argument("--init", choices=MeasurementGraph.initializations, default="chordal",
-                       help="initial guess; 'file' takes the file's VERTEX poses (default: %(default)s)")
+                       help="initial guess: chordal relaxation, odometry (spanning tree), random (Haar rotations, "
+                       "random translations; see --seed), or file (the file's VERTEX poses) (default: %(default)s)")
+    solve.add_argument("--seed", type=int, default=0, help="seed of --init random (default: %(default)s)")
     solve.add_argument("--robust", metavar="LOSS:SCALE", help="robust loss, e.g. huber:1.0, cauchy:0.5")
-    solve.add_argument("--out", type=Path, metavar="RESULT.g2o", help="write the solution as g2o")
+    solve.add_argument("--out", type=Path, metavar="RESULT.g2o",
+                       help="write the solution as g2o (atomically; never over the input without --force; "
+                       "rotation averaging keeps the file's translations)")
+    solve.add_argument("--force", action="store_true", help="allow --out to overwrite the input file")
     solve.add_argument("--plot", type=Path, metavar="FIG.png",
                        help="trajectories before/after (poses) or convergence (rotations)")
+    solve.add_argument("--quaternion-tol", type=_common.number(float, positive=True), default=None, metavar="X",
+                       help="accept (and normalize) quaternions whose norm is within X of 1 "
+                       "(default: the reader's, see manopt_lie.problems.g2o.read)")
     _common.add_stopping(solve, max_time=600.0)
     _common.add_output(solve)
     solve.set_defaults(run=run)  # fmt: skip
 
 
-def run(args: argparse.Namespace) -> None:
+def run(args: argparse.Namespace) -> int:
+    if args.file.is_dir():
+        raise _common.UsageError(f"{args.file} is a directory, not a g2o file")
     if not args.file.is_file():
         raise _common.UsageError(f"no such file: {args.file}")
-    graph = get_kind(args.problem).from_pose_graph(g2o.read(args.file))
+    _common.output_path(args.out, "--out", inputs=[args.file], force=args.force)
+    _common.output_path(args.plot, "--plot", inputs=[args.file])
+    tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
+    graph = get_kind(args.problem).from_pose_graph(g2o.read(args.file, **tol))
     cost = args.cost or graph.costs[0]
     if cost not in graph.costs:
         raise _common.UsageError(f"--cost {cost}: a {graph.kind} problem offers {', '.join(graph.costs)}")
     start = time.perf_counter()
-    x0 = graph.initialize(args.init)
+    x0 = graph.initialize(args.init, seed=args.seed)
     init_time = time.perf_counter() - start
     problem = graph.problem(cost, robust=args.robust)
     entry = get_optimizer(args.optimizer)
@@ -74,26 +86,34 @@ def run(args: argparse.Namespace) -> None:
                 progress.update(bar, completed=info.iteration, description=f"{args.optimizer}: cost {info.fun:.6g}")
 
             result = optimizer.solve(problem, x0, callback=show)
+    if result.status is Status.INTERRUPTED:
+        raise KeyboardInterrupt  # nothing is written; main reports it and exits 130
     summary = {
         "file": str(args.file), "problem": graph.kind, "cost": cost, "optimizer": args.optimizer,
         "robust": args.robust, "n": graph.n, "m": graph.m, "initial_fun": problem.cost(x0), "fun": result.fun,
         "nit": result.nit, "time": result.time, "init_time": init_time, "status": result.status.name.lower(),
         "converged": result.status.converged, "grad_norm": result.grad_norm, "message": result.message,
+        "written": [],
     }  # fmt: skip
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        g2o.write(args.out, *graph.to_g2o(result.x))
+        _common.write_text(args.out, g2o.dumps(*graph.to_g2o(result.x)))
+        summary["written"].append(str(args.out))
     if args.plot is not None:
         _plot(args, graph, x0, result, summary)
+        summary["written"].append(str(args.plot))
+    code = _common.EXIT_OK if result.status.converged else _common.EXIT_NOT_CONVERGED
     if args.json:
-        print(json.dumps(summary, allow_nan=False))
-        return
+        _common.print_json(summary)
+        return code
     print(
         f"{args.file.name}: {graph.n} {graph.noun}, {graph.m} edges; "
         f"{cost} cost {summary['initial_fun']:.8g} → {result.fun:.8g} by {args.optimizer} in {result.nit} "
         f"iterations, {result.time:.3f} s (+ {init_time:.3f} s {args.init} initialization)\n"
         f"status: {result.message}; ‖grad‖ = {result.grad_norm:.3g}"
     )
+    for path in summary["written"]:
+        print(f"wrote {path}")
+    return code
 
 
 def _plot(args: argparse.Namespace, graph: MeasurementGraph, x0: Any, result: Any, summary: dict[str, Any]) -> None:

@@ -57,7 +57,7 @@ def test_rank_deficient_translation_block(grid: PoseGraph) -> None:
 def test_indefinite_translation_block_never_gives_an_infinite_weight(grid: PoseGraph) -> None:
     """Audit: an indefinite translation block made τ = inf and the chordal cost nan, silently."""
     bad = with_information(grid, set_block(3, slice(0, 2), np.diag([1.0, -1.0])))
-    kappa, tau = bad.se_sync_weights
+    _, tau = bad.se_sync_weights
     assert not np.isinf(tau).any()
     with pytest.raises(IndefiniteInformationError, match=named(bad, 3)):
         bad.cost(grid.initialize("odometry"), "chordal")
