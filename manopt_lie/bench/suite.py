@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from manopt_lie.optim import OPTIMIZERS, StoppingCriteria, get_optimizer
+from manopt_lie.optim import OPTIMIZERS, Status, StoppingCriteria, get_optimizer
 from manopt_lie.problems.catalogue import CatalogueError, Entry, Loaded
 
 from . import peers as peer_adapters
@@ -97,7 +97,14 @@ def initialize(loaded: Loaded) -> tuple[float, Any]:
 
 def _ours(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run, Any]:
     optimizer = get_optimizer(task.solver).make(settings.stopping)
-    seconds, result = median_time(lambda: optimizer.solve(loaded.spec.problem(task.cost), x0), settings.repeat)
+
+    def solve() -> Any:
+        result = optimizer.solve(loaded.spec.problem(task.cost), x0)
+        if result.status is Status.INTERRUPTED:  # Ctrl-C ends the campaign, not just this run
+            raise KeyboardInterrupt
+        return result
+
+    seconds, result = median_time(solve, settings.repeat)
     run = _record(task, loaded, seconds, result.nit, result.fun, result.status.name.lower().replace("_", " "))
     run.converged, run.grad_norm = result.status.converged, result.grad_norm
     run.history_cost, run.history_time = result.history.cost.tolist(), result.history.time.tolist()
