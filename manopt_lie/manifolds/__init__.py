@@ -1,6 +1,7 @@
 """Riemannian manifolds: the geometry optimizers need (CONVENTIONS §6)."""
 
 from .base import Manifold, MissingOperationError
+from .blocks import Blocks, Values
 from .euclidean import Euclidean
 from .lie_group import LieGroupManifold
 from .product import Power, Product, ProductVector
@@ -18,4 +19,6 @@ __all__ = [
     "Product",
     "Power",
     "ProductVector",
+    "Blocks",
+    "Values",
 ]

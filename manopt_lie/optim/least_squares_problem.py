@@ -1,9 +1,12 @@
-"""Nonlinear least squares on a power manifold, from factor types given as arrays of edges.
+"""Nonlinear least squares over variables of one or several kinds, from factor types given
+as arrays of edges.
 
-The variable is a point of ``Power(M, n)`` (``n`` poses, rotations, …) with
-tangent vectors ``(n, d)``. Each :class:`Factor` is one residual *type*
-evaluated for all of its ``m`` edges in one vectorized call; its Jacobians are
-right Jacobians in tangent coordinates. The cost is
+The variables are a point of ``Power(M, n)`` (``n`` poses, rotations, …; tangent vectors
+``(n, d)``) or of :class:`~manopt_lie.manifolds.Blocks` — named blocks of several kinds,
+poses *and* landmarks, each a ``Power(M_k, n_k)``, with one flat tangent of
+``Σ n_k d_k`` coordinates. Each :class:`Factor` is one residual *type* over a tuple of
+blocks (unary, binary, …), evaluated for all of its ``m`` edges in one vectorized call;
+its Jacobians are right Jacobians in tangent coordinates. The cost is
 
     f(x) = ½ Σ_factors Σ_edges ρ(‖r_e(x)‖²)
 
@@ -16,7 +19,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -26,7 +29,7 @@ from numpy.typing import NDArray
 
 from ..errors import NonFiniteError, ShapeError
 from ..linalg import BlockStructure
-from ..manifolds import Power
+from ..manifolds import Blocks, Power
 from ._values import check_result, same_point, snapshot
 from .losses import RobustLoss, Trivial, parse_loss
 from .problem import Problem
@@ -42,7 +45,8 @@ class Factor:
     Parameters
     ----------
     variables : int array ``(m, arity)``
-        The variables (indices into the power manifold) each edge connects.
+        The variables each edge connects: indices into the power manifold, or into the
+        block of each slot (``blocks``).
     residual : callable
         ``residual(*points, jac)`` gets, for each slot ``s``, the points
         ``x[variables[:, s]]`` (batch shape ``(m,)``) and returns the residuals
@@ -55,12 +59,16 @@ class Factor:
         plain least squares.
     name : str
         For messages.
+    blocks : tuple of str, optional
+        On :class:`~manopt_lie.manifolds.Blocks`: the block of each slot, e.g.
+        ``("poses", "landmarks")``; a single name applies to every slot. Ignored on ``Power``.
     """
 
     variables: NDArray[np.int64]
     residual: Residual
     loss: RobustLoss | str | None = field(default_factory=Trivial)
     name: str = "factor"
+    blocks: tuple[str, ...] | str | None = None
 
     def __post_init__(self) -> None:
         v = np.asarray(self.variables)
@@ -70,6 +78,13 @@ class Factor:
             raise ValueError(f"{self.name}: variables must be a non-empty integer array (m, arity), got {v.shape}")
         object.__setattr__(self, "variables", v.astype(np.int64))
         object.__setattr__(self, "loss", parse_loss(self.loss))
+        if isinstance(self.blocks, str):
+            object.__setattr__(self, "blocks", (self.blocks,) * v.shape[1])
+        elif self.blocks is not None:
+            blocks = tuple(self.blocks)
+            if len(blocks) != v.shape[1]:
+                raise ValueError(f"{self.name}: {len(blocks)} blocks for {v.shape[1]} slots")
+            object.__setattr__(self, "blocks", blocks)
 
     @property
     def robust_loss(self) -> RobustLoss:
@@ -92,18 +107,101 @@ class Linearization:
         return bool(math.isfinite(self.cost) and np.isfinite(self.grad).all() and np.isfinite(self.hessian.data).all())
 
 
+class _Layout:
+    """Where the variables are: one ``Power(M, n)`` (tangents ``(n, d)``) or the named blocks
+    of :class:`~manopt_lie.manifolds.Blocks` (tangents flat), as global variable indices
+    ``0..N−1`` with their tangent dimensions (the normal equations' block layout)."""
+
+    def __init__(self, manifold: Power | Blocks) -> None:
+        if isinstance(manifold, Blocks):
+            self.blocks: Blocks | None = manifold
+            self.dims = manifold.dims
+            self.sizes = dict(zip(manifold.names, manifold.sizes, strict=True))
+            self.block_dims = dict(zip(manifold.names, manifold.block_dims, strict=True))
+            self.offsets = manifold.offsets
+            self.tangent_shape: tuple[int, ...] = (manifold.size,)
+        elif isinstance(manifold, Power) and len(manifold.shape) == 1 and manifold.manifold.tangent_ndim == 1:
+            self.blocks = None
+            n, d = manifold.shape[0], manifold.manifold.dim
+            self.dims = np.full(n, d, dtype=np.int64)
+            self.sizes, self.block_dims, self.offsets = {"": n}, {"": d}, {"": 0}
+            self.tangent_shape = (n, d)
+        else:
+            raise TypeError(f"LeastSquaresProblem: need Power(M, n) with vector tangents or Blocks, got {manifold!r}")
+        self.n = len(self.dims)
+
+    def slots(self, f: Factor) -> tuple[str, ...]:
+        """The block of each of ``f``'s slots (``""`` for the one block of a power)."""
+        arity = f.variables.shape[1]
+        if self.blocks is None:
+            return ("",) * arity
+        if f.blocks is None:
+            if len(self.sizes) == 1:
+                return (self.blocks.names[0],) * arity
+            raise ValueError(f"{f.name}: say which block each slot refers to (blocks=…); blocks: {self.blocks.names}")
+        unknown = [b for b in f.blocks if b not in self.sizes]
+        if unknown:
+            raise ValueError(f"{f.name}: unknown blocks {unknown}; blocks: {self.blocks.names}")
+        return f.blocks  # type: ignore[return-value]
+
+    def global_variables(self, f: Factor) -> NDArray[np.int64]:
+        """``(m, arity)`` global variable indices of ``f``'s edges, range-checked per slot."""
+        out = np.empty_like(f.variables)
+        for s, block in enumerate(self.slots(f)):
+            local, size = f.variables[:, s], self.sizes[block]
+            bad = (local < 0) | (local >= size)
+            if bad.any():
+                edge = int(np.argmax(bad))
+                where = f"block {block!r} " if block else ""
+                raise ValueError(
+                    f"{f.name}: edge {edge} refers to variable {f.variables[edge].tolist()} "
+                    f"outside {where}0..{size - 1}"
+                )
+            out[:, s] = local + self.offsets[block]
+        return out
+
+    def points(self, x: Any, f: Factor, slots: tuple[str, ...]) -> list[Any]:
+        if self.blocks is None:
+            return [x[f.variables[:, s]] for s in range(len(slots))]
+        return [x[block][f.variables[:, s]] for s, block in enumerate(slots)]
+
+    def fixed_mask(self, fixed: Any) -> NDArray[np.bool_]:
+        """Global mask of the fixed variables from indices (global) or, on blocks, a mapping
+        ``name → indices``."""
+        mask = np.zeros(self.n, dtype=bool)
+        if isinstance(fixed, Mapping):
+            if self.blocks is None:
+                raise TypeError("LeastSquaresProblem: fixed={block: indices} needs Blocks")
+            for block, local in fixed.items():
+                if block not in self.sizes:
+                    raise ValueError(f"fixed: unknown block {block!r}; blocks: {self.blocks.names}")
+                local = np.asarray(local, dtype=np.int64).reshape(-1)
+                if local.size and (local.min() < 0 or local.max() >= self.sizes[block]):
+                    raise ValueError(f"fixed: indices of block {block!r} must lie in 0..{self.sizes[block] - 1}")
+                mask[self.offsets[block] + local] = True
+            return mask
+        index = np.asarray(fixed, dtype=np.int64).reshape(-1)
+        if index.size and (index.min() < 0 or index.max() >= self.n):
+            raise ValueError(f"fixed: variable indices must lie in 0..{self.n - 1}")
+        mask[index] = True
+        return mask
+
+
 class LeastSquaresProblem(Problem):
-    """``½ Σ ρ(‖r‖²)`` over factor types on ``Power(M, n)``; also a :class:`Problem` whose
-    Hessian is the Gauss-Newton model, so every optimizer runs on it.
+    """``½ Σ ρ(‖r‖²)`` over factor types on ``Power(M, n)`` or on named :class:`Blocks`; also
+    a :class:`Problem` whose Hessian is the Gauss-Newton model, so every optimizer runs on it.
 
     Parameters
     ----------
-    manifold : Power
-        ``Power(M, n)`` with vector tangents (``(n, d)``).
+    manifold : Power or Blocks
+        ``Power(M, n)`` with vector tangents (tangents ``(n, d)``), or
+        ``Blocks({"poses": Power(SE3, n), "landmarks": Power(R3, L)})`` (tangents flat,
+        ``Σ n_k d_k``; each factor names the block of each slot).
     factors : sequence of Factor
-    fixed : int array, optional
+    fixed : int array or mapping, optional
         Variables held constant (e.g. the first pose, fixing the gauge): their
-        Jacobian columns are dropped, so steps never move them.
+        Jacobian columns are dropped, so steps never move them. Indices (global:
+        block after block), or on blocks ``{"poses": [0]}``.
     hessian : callable ``(x, v) ↦ Hess f(x)[v]``, optional
         The exact Riemannian Hessian-vector product, for optimizers that use
         :meth:`hess` (the trust region) instead of the Gauss-Newton model.
@@ -117,31 +215,26 @@ class LeastSquaresProblem(Problem):
     thread-safe themselves (pure functions of their arguments are).
     """
 
-    __slots__ = ("_build_lock", "_dim", "_exact_hessian", "_factors", "_fixed", "_n", "_residual_dims", "_structure")
+    __slots__ = (
+        "_build_lock", "_exact_hessian", "_factors", "_fixed", "_layout", "_residual_dims", "_slots", "_structure",
+        "_variables",
+    )  # fmt: skip
 
     def __init__(
         self,
-        manifold: Power,
+        manifold: Power | Blocks,
         factors: Sequence[Factor],
         *,
-        fixed: Sequence[int] | NDArray[Any] = (),
+        fixed: Sequence[int] | NDArray[Any] | Mapping[str, Any] = (),
         hessian: Callable[[Any, FloatArray], FloatArray] | None = None,
     ) -> None:
-        if not isinstance(manifold, Power) or len(manifold.shape) != 1 or manifold.manifold.tangent_ndim != 1:
-            raise TypeError(f"LeastSquaresProblem: need Power(M, n) with vector tangents, got {manifold!r}")
+        self._layout = _Layout(manifold)
         if not factors:
             raise ValueError("LeastSquaresProblem: no factors")
-        self._n, self._dim = manifold.shape[0], manifold.manifold.dim
-        for f in factors:
-            bad = (f.variables < 0) | (f.variables >= self._n)
-            if bad.any():
-                edge = int(np.argwhere(bad)[0, 0])
-                raise ValueError(
-                    f"{f.name}: edge {edge} refers to variable {f.variables[edge]} outside 0..{self._n - 1}"
-                )
         self._factors = tuple(factors)
-        self._fixed = np.zeros(self._n, dtype=bool)
-        self._fixed[np.asarray(fixed, dtype=np.int64)] = True
+        self._slots = tuple(self._layout.slots(f) for f in self._factors)
+        self._variables = tuple(self._layout.global_variables(f) for f in self._factors)
+        self._fixed = self._layout.fixed_mask(fixed)
         self._structure: BlockStructure | None = None
         self._residual_dims: tuple[int, ...] | None = None
         self._build_lock = threading.Lock()
@@ -155,10 +248,16 @@ class LeastSquaresProblem(Problem):
 
     @property
     def fixed(self) -> NDArray[np.bool_]:
+        """Mask of the fixed variables, by global index (block after block)."""
         return self._fixed.copy()
 
-    def _points(self, x: Any, factor: Factor) -> list[Any]:
-        return [x[factor.variables[:, s]] for s in range(factor.variables.shape[1])]
+    @property
+    def dims(self) -> NDArray[np.int64]:
+        """The tangent dimension of each variable, by global index."""
+        return self._layout.dims.copy()
+
+    def _points(self, x: Any, k: int) -> list[Any]:
+        return self._layout.points(x, self._factors[k], self._slots[k])
 
     def _check_residual(self, k: int, r: Any, jac: bool) -> None:
         """Shapes only (no pass over the data): ``(m, residual_dim)``."""
@@ -174,7 +273,7 @@ class LeastSquaresProblem(Problem):
     def _evaluate_cost(self, x: Any) -> float:
         total = 0.0
         for k, f in enumerate(self._factors):
-            r = f.residual(*self._points(x, f), jac=False)
+            r = f.residual(*self._points(x, k), jac=False)
             self._check_residual(k, r, False)
             total += 0.5 * float(np.sum(f.robust_loss.rho(np.einsum("...i,...i->...", r, r))))
         return total
@@ -197,27 +296,28 @@ class LeastSquaresProblem(Problem):
         key = snapshot(x)
         residuals, blocks, weights, cost = [], [], [], 0.0
         for k, f in enumerate(self._factors):
-            r, jacobians = f.residual(*self._points(x, f), jac=True)
+            r, jacobians = f.residual(*self._points(x, k), jac=True)
             self._check_residual(k, r, True)
             m, arity, rdim = f.variables.shape[0], f.variables.shape[1], np.shape(r)[1]
             if arity == 1 and np.ndim(jacobians) == 3:  # a unary factor's one Jacobian, given bare
                 jacobians = [jacobians]
-            if len(jacobians) != arity or any(np.shape(j) != (m, rdim, self._dim) for j in jacobians):
+            expected = [(m, rdim, self._layout.block_dims[b]) for b in self._slots[k]]
+            if len(jacobians) != arity or [np.shape(j) for j in jacobians] != expected:
                 raise ShapeError(
                     f"{f.name}: residual(jac=True) returned Jacobians of shapes "
-                    f"{[np.shape(j) for j in jacobians]}; expected {arity} of shape (m, k, d) = {(m, rdim, self._dim)}"
+                    f"{[np.shape(j) for j in jacobians]}; expected (m, k, d) = {expected}"
                 )
             s = np.einsum("...i,...i->...", r, r)
             cost += 0.5 * float(np.sum(f.robust_loss.rho(s)))
             # Fixed variables: zero columns, so their update is exactly zero.
-            keep = ~self._fixed[f.variables]
+            keep = ~self._fixed[self._variables[k]]
             blocks.append(np.concatenate([j * keep[:, s, None, None] for s, j in enumerate(jacobians)], axis=-1))
             residuals.append(r)
             weights.append(f.robust_loss.weight(s))
         structure = self._structure or self._build_structure(residuals)
         h, g = structure.normal_equations(blocks, residuals, weights)
-        h = structure.add_diagonal(h, np.repeat(self._fixed, self._dim).astype(np.float64))
-        lin = Linearization(cost, g.reshape(self._n, self._dim), h, residuals, weights)
+        h = structure.add_diagonal(h, np.repeat(self._fixed, self._layout.dims).astype(np.float64))
+        lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
         self._local.linearization = (key, lin)
         return lin
 
@@ -226,9 +326,8 @@ class LeastSquaresProblem(Problem):
         structure, whose ``H`` patterns a solver's symbolic analysis recognizes)."""
         with self._build_lock:
             if self._structure is None:
-                dims = np.full(self._n, self._dim)
-                shapes = [(f.variables, r.shape[-1]) for f, r in zip(self._factors, residuals, strict=True)]
-                structure = BlockStructure(dims, shapes)
+                shapes = [(v, r.shape[-1]) for v, r in zip(self._variables, residuals, strict=True)]
+                structure = BlockStructure(self._layout.dims, shapes)
                 self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
                 self._structure = structure
             return self._structure
@@ -257,7 +356,7 @@ class LeastSquaresProblem(Problem):
             what = "cost" if not math.isfinite(lin.cost) else "gradient or Gauss-Newton matrix (a Jacobian)"
             raise NonFiniteError(f"{owner}: the {what} is not finite at x0 although every residual is")
         if hessian and self._exact_hessian is not None:
-            check_result(owner, "hessian", self._exact_hessian(x, lin.grad), (self._n, self._dim),
+            check_result(owner, "hessian", self._exact_hessian(x, lin.grad), self._layout.tangent_shape,
                          f"a tangent vector of {self.manifold!r}")  # fmt: skip
         return lin.cost, lin.grad
 
@@ -266,7 +365,7 @@ class LeastSquaresProblem(Problem):
 
     def _gauss_newton_product(self, x: Any, v: FloatArray) -> FloatArray:
         """``JᵀWJ v`` (fixed variables: ``v`` itself, which no step ever excites)."""
-        return (self.linearize(x).hessian @ np.asarray(v).reshape(-1)).reshape(self._n, self._dim)
+        return (self.linearize(x).hessian @ np.asarray(v).reshape(-1)).reshape(self._layout.tangent_shape)
 
     @property
     def structure(self) -> BlockStructure | None:

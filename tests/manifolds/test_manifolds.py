@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, NonFiniteError, NotOnManifoldError, Rn, ShapeError
 from manopt_lie.lie import RnGroup
 from manopt_lie.manifolds import (
+    Blocks,
     Euclidean,
     LieGroupManifold,
     Manifold,
@@ -44,6 +45,7 @@ CASES: list[tuple[Manifold, str]] = [
     (Power(LieGroupManifold(SE3), (2, 3)), "pullback"),
     (Product(Sphere(3), LieGroupManifold(SE3)), "pullback"),
     (Power(Product(LieGroupManifold(SE2), Euclidean(2)), 3), "pullback"),
+    (Blocks({"poses": Power(LieGroupManifold(SE3), 3), "points": Power(Euclidean(3), 4)}), "pullback"),
 ]
 cases = pytest.mark.parametrize("manifold, hessian_check", CASES, ids=[repr(m) for m, _ in CASES])
 seeds = given(seed=st.integers(0, 2**32 - 1))
