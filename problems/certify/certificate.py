@@ -159,6 +159,13 @@ def _lanczos_min(rel: Relaxation, lam: FloatArray, shift: float, v0: FloatArray)
     return theta, v
 
 
+def margin(rel: Relaxation, f_x: float, f_y: float, tol: float) -> float:
+    """``η``: the eigenvalue margin that makes the gap bound ``(f_x − f_y) + η·nd`` equal
+    ``tol·|f_x|``, plus the floor ``EIG_FLOOR·scale``."""
+    lost = max(f_x - f_y, 0.0)
+    return max(tol * abs(f_x) - lost, 0.0) / (rel.n * rel.d) + EIG_FLOOR * rel.scale
+
+
 def certify_relaxation(
     rel: Relaxation,
     y: FloatArray,
@@ -167,6 +174,7 @@ def certify_relaxation(
     tol: float = DEFAULT_TOL,
     seed: int | None = 0,
     eigenvector: bool = True,
+    quick: bool = False,
 ) -> Certificate:
     """The certificate of a rank-``p`` point ``Y`` (``(n, p, d)``, orthonormal columns per block).
 
@@ -184,19 +192,22 @@ def certify_relaxation(
         Seeds the start vectors of the eigensolvers.
     eigenvector : bool
         Whether to estimate ``λ_min`` and its eigenvector when the point is certified
-        (two block inverse iterations); when it is not, they are always computed.
+        (two block inverse iterations); when it is not, they are computed unless ``quick``.
+    quick : bool
+        Only the factorization test: a refused point gets ``lambda_min = nan``, a zero
+        eigenvector and the trivial bound ``S ⪰ −Λ`` (what a stopping test needs).
     """
     start = time.perf_counter()
     n, p, d = y.shape
     nd = n * d
     yt = stacked(y)
     qyt = rel.q(yt)
-    f_y = float(np.vdot(yt, qyt))
+    f_y = rel.cost(y)  # = tr Λ up to the rounding of Λ, which EIG_FLOOR covers
     f_x = f_y if fun is None else float(fun)
     lam = rel.lambda_blocks(y, qyt)
     floor = EIG_FLOOR * rel.scale
     lost = max(f_x - f_y, 0.0)  # what the point's translations lose against the optimal ones
-    eta = max(tol * abs(f_x) - lost, 0.0) / nd + floor
+    eta = margin(rel, f_x, f_y, tol)
     rng = np.random.default_rng(seed)
     count = 1
     if rel.factor_certificate(lam, eta):
@@ -212,6 +223,11 @@ def certify_relaxation(
         # S ⪰ −Λ (Q ⪰ 0): S + hi·I ≻ 0 for hi above the largest eigenvalue of the blocks.
         lo = eta
         hi = max(float(np.max(np.linalg.eigvalsh(lam)[:, -1])), 0.0) * (1.0 + 1e-6) + 2.0 * floor
+        if quick:
+            return Certificate(
+                False, f_x, math.nan, -hi, eta, tol, f_y - nd * hi, f_x - f_y + nd * hi, np.zeros((n, d)), p, count,
+                time.perf_counter() - start, "not certified (the factorization test failed; λ_min not computed)",
+            )  # fmt: skip
         last_ok = False
         while hi > _BRACKET_RATIO * lo:
             mid = math.sqrt(lo * hi)
@@ -261,7 +277,7 @@ def rotations_of(graph: MeasurementGraph, x: Any) -> tuple[FloatArray, FloatArra
         m = np.concatenate([r, t[:, :, None]], axis=2)
     else:
         m = np.asarray(x, dtype=np.float64)
-    if m.ndim != 3 or m.shape[0] != n or m.shape[2] not in (d, d + 1) or m.shape[1] not in (d, d + 1):
+    if m.shape not in ((n, d + 1, d + 1), (n, d, d + 1), (n, d, d)):
         raise ShapeError(
             f"{graph.name}: x must hold {n} poses or rotations as ({n}, {d + 1}, {d + 1}), ({n}, {d}, {d + 1}) "
             f"or ({n}, {d}, {d}) matrices, got {m.shape}"

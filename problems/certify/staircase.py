@@ -1,0 +1,470 @@
+"""The Riemannian staircase (Boumal 2015; SE-Sync, Rosen et al. IJRR 2019, Algorithm 1;
+Shonan averaging, Dellaert et al. ECCV 2020, for rotations).
+
+At rank ``p ≥ d`` the relaxation is ``min f(Y) = tr(Y Q Yᵀ)`` over ``Y ∈ St(p, d)ⁿ``
+(blocks ``Y_i`` with orthonormal columns, translations eliminated: :mod:`.data`). Each
+level runs :class:`~manopt_lie.optim.TrustRegion` with the exact Hessian (``∇f = 2YQ``,
+``∇²f[V] = 2VQ``, turned Riemannian by ``Stiefel.egrad2rgrad/ehess2rhess``) and SE-Sync's
+regularized Cholesky preconditioner ``(Q + λI)⁻¹``, then certifies the critical point
+(:func:`~.certificate.certify_relaxation`). A certified ``Y`` solves the SDP relaxation;
+otherwise ``λ_min(S) < 0`` and its eigenvector ``v`` gives the direction of negative
+curvature ``Ẏ = e_{p+1} vᵀ`` at ``[Y; 0]`` on the next level, along which a backtracking
+line search leaves the saddle. The final ``Y`` is rounded to rotations
+(:func:`~.rounding.round_solution`), the translations are recovered, and the rounded
+solution is certified on its own.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, replace
+from enum import Enum
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from manopt_lie.lie.base import LieGroup
+from manopt_lie.manifolds import Power, Stiefel
+from manopt_lie.optim import IterationInfo, OptimizeResult, Problem, StoppingCriteria, TrustRegion
+
+from ..graph import MeasurementGraph
+from .certificate import DEFAULT_TOL, Certificate, certify_relaxation, margin, rotations_of
+from .data import Relaxation, relaxation, stacked, unstacked
+from .rounding import lift, round_solution
+
+FloatArray = NDArray[np.float64]
+
+logger = logging.getLogger("manopt_lie.problems.certify")
+
+DEFAULT_STOPPING = StoppingCriteria(max_iterations=500, grad_rtol=1e-6, grad_atol=1e-9, rel_cost_decrease=1e-9)
+"""The trust region at the levels ``p > d``: only as accurate as rounding needs (the point
+at rank ``d`` is then polished); tighter when a certificate asks for it."""
+
+GRAD_FLOOR = 1e-13
+"""The polishing trust region at rank ``d`` stops at ``‖grad f‖ ≤ GRAD_FLOOR·‖Q‖·√(nd·p)``
+(``‖Q‖`` the :attr:`Relaxation.scale`), a few hundred times the round-off of ``2YQ``: the
+certificate needs accurate critical points (``λ_min`` of a point at distance ``δ`` from one
+is ``−O(δ²)``), which the exact Hessian reaches in a few iterations, but not below round-off."""
+
+
+def default_polish(rel: Relaxation, p: int) -> StoppingCriteria:
+    """The rank-``d`` trust region's stopping rule (:data:`GRAD_FLOOR`)."""
+    floor = GRAD_FLOOR * rel.scale * math.sqrt(rel.n * rel.d * p)
+    return StoppingCriteria(max_iterations=200, grad_rtol=0.0, grad_atol=floor)
+
+_REFINEMENTS = 1  # re-solves of one level, 100× tighter, when λ_min fails only by a hair
+_IMPRECISE = 10.0  # λ_min ≥ −10η: maybe imprecision of the critical point, not a saddle
+
+
+class StaircaseStatus(Enum):
+    """Why :func:`staircase` stopped; only ``OPTIMAL`` carries a certificate."""
+
+    OPTIMAL = "the rounded solution is certified globally optimal"
+    RELAXATION_NOT_TIGHT = "the relaxation was solved (certified) but its rounded solution is not certified"
+    MAX_RANK = "the maximum rank was reached without a certificate"
+    MAX_TIME = "the time limit was reached without a certificate"
+    ESCAPE_FAILED = "no decrease was found along the negative curvature direction"
+
+
+@dataclass(frozen=True)
+class Level:
+    """One level of the staircase.
+
+    Attributes
+    ----------
+    rank : int
+        ``p``.
+    result : OptimizeResult
+        The trust region at rank ``p`` (iterations, time, history).
+    polish : OptimizeResult or None
+        The trust region at rank ``d`` from the rounded point (``p > d``; for ``p = d`` a
+        re-solve with tighter tolerances, if one was needed).
+    certificate_d : Certificate
+        Of the rank-``d`` point (rounded and polished).
+    certificate : Certificate
+        Of the rank-``p`` point (the same as ``certificate_d`` for ``p = d``): its
+        eigenvector is the escape direction.
+    escape_step : float
+        The step taken along it to the next level (``nan``: none).
+    """
+
+    rank: int
+    result: OptimizeResult
+    polish: OptimizeResult | None
+    certificate_d: Certificate
+    certificate: Certificate
+    escape_step: float
+
+    @property
+    def iterations(self) -> int:
+        return self.result.nit + (self.polish.nit if self.polish is not None else 0)
+
+    @property
+    def time(self) -> float:
+        """Trust-region time at both ranks (certificates excluded)."""
+        return self.result.time + (self.polish.time if self.polish is not None else 0.0)
+
+
+@dataclass(frozen=True)
+class StaircaseResult:
+    """What :func:`staircase` returns.
+
+    Attributes
+    ----------
+    x : group element, batch ``(n,)``
+        The rounded solution: SE(d) poses (translations recovered) or SO(d) rotations.
+    fun : float
+        Its chordal cost (CONVENTIONS §8, the graph's ``cost(x, "chordal")``).
+    optimal : bool
+        Whether :attr:`certificate` certifies ``x``.
+    certificate : Certificate
+        The certificate of ``x`` itself (rank ``d``).
+    status : StaircaseStatus
+    rank : int
+        The rank ``p`` of the last level.
+    y : ndarray ``(n, rank, d)``
+        The last relaxation point; ``relaxation_value = f(y)``.
+    lower_bound : float
+        The best proven lower bound on the optimum ``f*`` (from the certificates of ``x``
+        and of the last ``y``); ``suboptimality = fun − lower_bound ≥ fun − f*``.
+    levels : tuple of Level
+        Per level: the trust-region result (iterations, time, history) and the certificate.
+    time : float
+        Wall time in seconds, the initialization included (not :func:`relaxation`, when given).
+    time_certificates : float
+        The part spent in certificates.
+    """
+
+    x: LieGroup
+    fun: float
+    optimal: bool
+    certificate: Certificate
+    status: StaircaseStatus
+    rank: int
+    y: FloatArray
+    relaxation_value: float
+    lower_bound: float
+    suboptimality: float
+    levels: tuple[Level, ...]
+    time: float
+    time_certificates: float
+
+    @property
+    def iterations(self) -> int:
+        """Trust-region iterations over all levels."""
+        return sum(level.iterations for level in self.levels)
+
+    def __str__(self) -> str:
+        return (
+            f"{self.status.value}: f = {self.fun:.10g}, f − f* ≤ {self.suboptimality:.3e}, rank {self.rank}, "
+            f"{len(self.levels)} levels, {self.iterations} iterations, {self.time:.3g} s "
+            f"({self.time_certificates:.3g} s certificates)"
+        )
+
+
+class _Cost:
+    """``f(Y)`` (:meth:`Relaxation.cost`, summed edge by edge) and its derivatives
+    ``2YQ``, ``V ↦ 2VQ`` (through :meth:`Relaxation.q`)."""
+
+    def __init__(self, rel: Relaxation) -> None:
+        self.rel = rel
+
+    def cost(self, y: FloatArray) -> float:
+        return self.rel.cost(y)
+
+    def egrad(self, y: FloatArray) -> FloatArray:
+        return 2.0 * unstacked(self.rel.q(stacked(y)), self.rel.n)
+
+    def ehess(self, y: FloatArray, u: FloatArray) -> FloatArray:
+        return 2.0 * unstacked(self.rel.q(stacked(u)), self.rel.n)
+
+
+def relaxation_problem(rel: Relaxation, p: int) -> Problem:
+    """The rank-``p`` relaxation as a :class:`~manopt_lie.optim.Problem` on
+    ``Power(Stiefel(p, d), n)``: ``f(Y) = tr(Y Q Yᵀ)``, ``egrad = 2YQ``, ``ehess[V] = 2VQ``
+    (as arrays ``(n, p, d)``)."""
+    f = _Cost(rel)
+    return Problem(Power(Stiefel(p, rel.d), rel.n), f.cost, egrad=f.egrad, ehess=f.ehess)
+
+
+def horizontal(y: FloatArray, z: FloatArray) -> FloatArray:
+    """The part of a tangent vector ``z`` at ``Y`` orthogonal to the gauge orbit ``{UY : U ∈ O(p)}``.
+
+    ``f(UY) = f(Y)``, so the Hessian is singular along the *vertical* vectors ``ΩY``
+    (``Ω`` skew, the same for all blocks); a truncated CG step that picks them up runs to
+    the trust region's boundary along them and, near round-off, wanders along the orbit.
+    The vertical part of ``z`` is ``ΩY`` with ``ΩG + GΩ = A − Aᵀ`` for ``G = Σ Y_iY_iᵀ``,
+    ``A = Σ z_iY_iᵀ`` (solved in the eigenbasis of ``G``; directions that do not move ``Y``,
+    ``g_a + g_b = 0``, are left out).
+    """
+    g = np.tensordot(y, y, axes=([0, 2], [0, 2]))
+    a = np.tensordot(z, y, axes=([0, 2], [0, 2]))
+    w, u = np.linalg.eigh(g)
+    b = u.T @ (a - a.T) @ u
+    denom = w[:, None] + w[None, :]
+    omega = u @ np.where(denom > 1e-12 * max(w[-1], 1e-300), b / np.where(denom > 0, denom, 1.0), 0.0) @ u.T
+    return z - omega @ y
+
+
+def preconditioner(rel: Relaxation, manifold: Power, *, regularized: bool = True) -> Any:
+    """SE-Sync's regularized Cholesky preconditioner ``(Q + λI)⁻¹`` on the horizontal space
+    (:func:`horizontal`), a symmetric positive definite callable ``(Y, r) ↦ z`` for
+    :class:`~manopt_lie.optim.TrustRegion`:
+
+        z = hor(proj((Q + λI)⁻¹ hor(r))) + c·ver(r),     ver = I − hor,
+
+    with ``c`` a thousandth of the horizontal scale ``1/‖Q‖``: the trust region's norm
+    ``‖η‖_P`` then makes steps along the gauge orbit (where the Hessian vanishes) a thousand
+    times costlier, so truncated CG does not run along it. With ``regularized=False`` the
+    horizontal part is the identity (``c = 10⁻³``).
+    """
+    c = 1e-3 / rel.scale if regularized else 1e-3
+
+    def apply(y: FloatArray, r: FloatArray) -> FloatArray:
+        h = horizontal(y, r)
+        z = manifold.proj(y, unstacked(rel.precondition(stacked(h)), rel.n)) if regularized else h
+        return horizontal(y, z) + c * (r - h)
+
+    return apply
+
+
+def escape_saddle(
+    rel: Relaxation, problem: Problem, y: FloatArray, certificate: Certificate, grad_tol: float
+) -> tuple[FloatArray, float] | None:
+    """Leave the saddle ``Y`` (rank ``p``) along ``Ẏ = e_{p+1} vᵀ`` at ``[Y; 0]`` (rank ``p + 1``).
+
+    ``v`` is the certificate's unit eigenvector with ``θ = vᵀSv < 0``; ``Ẏ`` is tangent
+    at ``[Y; 0]`` with ``⟨Ẏ, Hess f[Ẏ]⟩ = 2θ`` and ``⟨grad f, Ẏ⟩ = 0``, so
+    ``f(R(αẎ)) ≈ f(Y) + θα²``. Backtracking (halving) from ``α = √n`` keeps the first
+    step that decreases ``f`` and leaves a gradient above ``grad_tol`` (SE-Sync's rule);
+    failing that, the best decrease found; ``None`` if nothing decreases ``f``.
+
+    Returns
+    -------
+    (Y₊, α) or None
+    """
+    n, p, d = y.shape
+    manifold = problem.manifold
+    y_aug = lift(y, p + 1)
+    y_dot = np.zeros_like(y_aug)
+    y_dot[:, p, :] = certificate.eigenvector
+    f0 = rel.cost(y)
+    alpha, best = math.sqrt(n), None
+    while alpha >= 1e-6:
+        trial = manifold.retr(y_aug, alpha * y_dot)
+        f = problem.cost(trial)
+        if f < f0 - 1e-12 * abs(f0):
+            grad_norm = float(np.sqrt(np.sum(manifold.inner(trial, g := problem.grad(trial), g))))
+            if grad_norm > grad_tol:
+                return trial, alpha
+            if best is None or f < best[0]:
+                best = (f, trial, alpha)
+        alpha /= 2.0
+    return None if best is None else (best[1], best[2])
+
+
+def _initial_point(graph: MeasurementGraph, x0: Any, p: int, rng: np.random.Generator) -> FloatArray:
+    d = graph.d
+    if x0 is None or (isinstance(x0, str) and x0 == "chordal"):
+        return lift(rotations_of(graph, graph.chordal_initialization())[0], p)
+    if isinstance(x0, str):
+        if x0 != "random":
+            raise ValueError(f"staircase: x0 must be None, 'chordal', 'random', a solution or Stiefel blocks, got {x0!r}")
+        if p == d:  # St(d, d) = O(d) has two components: start in SO(d), which rounding expects
+            from manopt_lie.manifolds import SpecialOrthogonal
+
+            return np.asarray(Power(SpecialOrthogonal(d), graph.n).random_point(rng))
+        return np.asarray(Power(Stiefel(p, d), graph.n).random_point(rng))
+    if isinstance(x0, np.ndarray) and x0.ndim == 3 and x0.shape[2] == d and x0.shape[1] > d:
+        Power(Stiefel(x0.shape[1], d), graph.n).check_point(x0, "x0")
+        return lift(np.asarray(x0, dtype=np.float64), max(p, x0.shape[1]))
+    return lift(rotations_of(graph, x0)[0], p)
+
+
+def _imprecise(cert: Certificate) -> bool:
+    """A failed certificate whose ``λ_min`` is within ``10η`` of passing: the critical point
+    may just not be accurate enough (``λ_min = −O(δ²)`` at distance ``δ``)."""
+    return not cert.optimal and cert.lambda_min >= -_IMPRECISE * cert.eta
+
+
+def _tighter(stop: StoppingCriteria) -> StoppingCriteria:
+    return replace(stop, grad_rtol=stop.grad_rtol * 1e-2, grad_atol=stop.grad_atol * 1e-2)
+
+
+def staircase(
+    graph: MeasurementGraph,
+    x0: Any = None,
+    *,
+    rank: int | None = None,
+    max_rank: int | None = None,
+    seed: int | None = None,
+    tol: float = DEFAULT_TOL,
+    stopping: StoppingCriteria | None = None,
+    polish: StoppingCriteria | None = None,
+    max_time: float = math.inf,
+    precondition: bool = True,
+    data: Relaxation | None = None,
+    trust_region: dict[str, Any] | None = None,
+) -> StaircaseResult:
+    """Certifiably optimal chordal pose-graph optimization (SE-Sync) or rotation averaging
+    (Shonan) by the Riemannian staircase.
+
+    Each level ``p``: the trust region on the rank-``p`` relaxation (``stopping``); for
+    ``p > d`` the point is rounded to rotations and polished by the trust region at rank
+    ``d`` (``polish``); the rank-``d`` point is certified. Certified: done. Otherwise the
+    rank-``p`` point is certified too: certified, the relaxation is solved but not tight
+    (its bound is reported); a ``λ_min`` within ``10η`` of passing re-solves the level with
+    100× tighter gradient tolerances (once); else the staircase climbs to
+    ``p + 1`` along the negative curvature direction (:func:`escape_saddle`).
+
+    Parameters
+    ----------
+    graph : PoseGraph or RotationAveraging
+    x0 : None, "chordal", "random", solution or ndarray ``(n, q, d)``, optional
+        Where to start: the chordal initialization (default), random rotations (rank
+        ``d``; random Stiefel blocks at a higher rank) drawn from ``seed``, any solution
+        (group element or arrays, as :func:`~.certificate.certify` takes), or Stiefel
+        blocks of some rank ``q``.
+    rank : int, optional
+        The first level ``p`` (default ``d``; SE-Sync starts at 5).
+    max_rank : int, optional
+        The last level (default ``rank + 10``).
+    seed : int, optional
+        The random initialization's and the eigensolvers' seed.
+    tol : float
+        The certificates' relative tolerance (:func:`~.certificate.certify`).
+    stopping : StoppingCriteria, optional
+        The trust region of the levels ``p > d`` (default :data:`DEFAULT_STOPPING`).
+    polish : StoppingCriteria, optional
+        The trust region at rank ``d`` (default :func:`default_polish`).
+    max_time : float
+        Seconds for the whole staircase.
+    precondition : bool
+        SE-Sync's regularized Cholesky preconditioner (default) or none (the trust region's
+        steps are kept orthogonal to the gauge orbit either way: :func:`preconditioner`).
+    data : Relaxation, optional
+        The graph's reduced data, if already built (:func:`~.data.relaxation`).
+    trust_region : dict, optional
+        :class:`~manopt_lie.optim.TrustRegion` options (default ``theta=0.5``, SE-Sync's;
+        the preconditioner is :func:`preconditioner`).
+
+    Returns
+    -------
+    StaircaseResult
+    """
+    start = time.perf_counter()
+    rel = relaxation(graph) if data is None else data
+    d = graph.d
+    p = d if rank is None else int(rank)
+    max_rank = p + 10 if max_rank is None else int(max_rank)
+    if not d <= p <= max_rank:
+        raise ValueError(f"staircase: need d = {d} <= rank = {p} <= max_rank = {max_rank}")
+    rng = np.random.default_rng(seed)
+    y = _initial_point(graph, x0, p, rng)
+    p = y.shape[1]
+    level_stop = DEFAULT_STOPPING if stopping is None else stopping
+    polish_stop = default_polish(rel, d) if polish is None else polish
+    options = {"theta": 0.5, **(trust_region or {})}  # SE-Sync's: q-superlinear of order 1.5
+    problems: dict[int, Problem] = {}
+    cert_time = [0.0]
+
+    def problem_at(rank: int) -> Problem:
+        if rank not in problems:
+            problems[rank] = relaxation_problem(rel, rank)
+        return problems[rank]
+
+    found: list[tuple[FloatArray, Certificate]] = []  # (point, certificate) the callback certified
+
+    def certified(info: IterationInfo) -> bool:
+        """Stop the rank-d trust region once its point is certified: only a factorization,
+        tried once ``‖grad‖ ≤ 10·√(η‖Q‖)`` (``λ_min ≈ −‖grad‖²/μ`` with ``μ ≤ ‖Q‖``)."""
+        eta = margin(rel, info.fun, info.fun, tol)
+        if info.grad_norm > 10.0 * math.sqrt(eta * rel.scale):
+            return False
+        cert = check(np.asarray(info.x), eigenvector=False, quick=True)
+        if cert.optimal:
+            found.append((np.array(info.x), cert))
+        return cert.optimal
+
+    def run(rank: int, y0: FloatArray, stop: StoppingCriteria) -> OptimizeResult:
+        problem = problem_at(rank)
+        tr = dict(options)
+        tr.setdefault("preconditioner", preconditioner(rel, problem.manifold, regularized=precondition))  # type: ignore[arg-type]
+        remaining = max(max_time - (time.perf_counter() - start), 0.0)
+        solver = TrustRegion(stopping=replace(stop, max_time=min(stop.max_time, remaining)), **tr)
+        return solver.solve(problem, y0, callback=certified if rank == d else None)
+
+    def check(y_: FloatArray, **kw: Any) -> Certificate:
+        cert = certify_relaxation(rel, y_, tol=tol, seed=seed, **kw)
+        cert_time[0] += cert.time
+        return cert
+
+    def out_of_time() -> bool:
+        return time.perf_counter() - start > max_time
+
+    def certify_d(yd: FloatArray) -> Certificate:
+        known = [c for x_, c in found if np.array_equal(x_, yd)]  # certified by the callback
+        found.clear()
+        return known[-1] if known else check(yd, eigenvector=False)
+
+    levels: list[Level] = []
+    status = StaircaseStatus.MAX_RANK
+    while True:
+        stop = level_stop if p > d else polish_stop
+        for _ in range(_REFINEMENTS + 1):
+            result = run(p, y, stop)
+            y = np.asarray(result.x)
+            polished: OptimizeResult | None = None
+            if p == d:
+                yd, stop_d = y, stop
+            else:
+                polished = run(d, lift(round_solution(y), d), polish_stop)
+                yd, stop_d = np.asarray(polished.x), polish_stop
+            cert_d = certify_d(yd)
+            for _ in range(_REFINEMENTS):  # the rank-d point: as accurate as the certificate needs
+                if not _imprecise(cert_d) or out_of_time():
+                    break
+                stop_d = _tighter(stop_d)
+                polished = run(d, yd, stop_d)
+                yd = np.asarray(polished.x)
+                cert_d = certify_d(yd)
+            if p == d:
+                y = yd
+            cert_p = cert_d if p == d or cert_d.optimal else check(y, eigenvector=False)
+            if cert_d.optimal or not _imprecise(cert_p) or out_of_time():
+                break
+            stop = _tighter(stop)
+        logger.info("staircase rank %d: %s; rank %d: %s; rank %d: %s", p, result, d, cert_d, p, cert_p)
+        levels.append(Level(p, result, polished, cert_d, cert_p, math.nan))
+        if cert_d.optimal:
+            status = StaircaseStatus.OPTIMAL
+            break
+        if cert_p.optimal:
+            status = StaircaseStatus.RELAXATION_NOT_TIGHT
+            break
+        if out_of_time():
+            status = StaircaseStatus.MAX_TIME
+            break
+        if p >= max_rank:
+            break
+        escaped = escape_saddle(rel, problem_at(p + 1), y, cert_p, max(result.grad_norm, 1e-12) * 10.0)
+        if escaped is None:
+            status = StaircaseStatus.ESCAPE_FAILED
+            break
+        y, step = escaped
+        levels[-1] = replace(levels[-1], escape_step=step)
+        p += 1
+    rotations = round_solution(yd)
+    x = rel.poses(rotations)
+    fun = graph.cost(x, "chordal")
+    cert_x = check(rotations, fun=fun)
+    lower = max(cert_x.dual_bound, cert_p.dual_bound)
+    if status is StaircaseStatus.OPTIMAL and not cert_x.optimal:
+        status = StaircaseStatus.MAX_RANK  # cannot happen but by round-off in building x
+    return StaircaseResult(
+        x, fun, cert_x.optimal, cert_x, status, p, y, cert_p.fun, lower, fun - lower, tuple(levels),
+        time.perf_counter() - start, cert_time[0],
+    )  # fmt: skip
