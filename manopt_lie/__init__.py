@@ -7,13 +7,22 @@ Lie groups with exact, batched calculus (CONVENTIONS.md §1–5)::
     Y, J_X, J_tau = X.rplus(d, jac=True)
 """
 
-from .errors import IndefiniteMatrixError, NonFiniteError, NotInGroupError, NotOnManifoldError, ShapeError
+from .errors import (
+    IndefiniteMatrixError,
+    NonFiniteError,
+    NotInGroupError,
+    NotOnManifoldError,
+    RangeError,
+    ShapeError,
+)
 from .lie import (
     SE2,
     SE3,
+    SE23,
     SO2,
     SO3,
     LieGroup,
+    Sim3,
     Rn,
     left_to_right_covariance,
     mean_and_covariance,
@@ -30,6 +39,8 @@ __all__ = [
     "SO3",
     "SE2",
     "SE3",
+    "Sim3",
+    "SE23",
     "Rn",
     "propagate_covariance",
     "sample",
@@ -41,4 +52,5 @@ __all__ = [
     "NotOnManifoldError",
     "NotInGroupError",
     "IndefiniteMatrixError",
+    "RangeError",
 ]

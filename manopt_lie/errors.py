@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-__all__ = ["ShapeError", "NonFiniteError", "NotOnManifoldError", "NotInGroupError", "IndefiniteMatrixError"]
+__all__ = [
+    "ShapeError",
+    "NonFiniteError",
+    "NotOnManifoldError",
+    "NotInGroupError",
+    "IndefiniteMatrixError",
+    "RangeError",
+]
 
 
 class ShapeError(ValueError):
@@ -28,3 +35,8 @@ class NotInGroupError(NotOnManifoldError):
 
 class IndefiniteMatrixError(ValueError):
     """A covariance or information matrix is not symmetric positive (semi)definite."""
+
+
+class RangeError(ValueError):
+    """A finite input whose result is not representable in float64 (e.g. a Sim(3) log-scale
+    σ beyond ±700, whose scale e^σ overflows or underflows)."""

@@ -32,13 +32,13 @@ from ..lie._series import Backend
 __all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix", "CASADI", "horner"]
 # The coefficient functions of ``lie._series``, on CasADi matrices.
 __all__ += ["sinc", "cosc", "sinc3", "jinv_coef", "q_coef2", "q_coef3", "half_cot", "sinc_half", "cos_half"]
-__all__ += ["atan_ratio", "atan2_ratio"]
+__all__ += ["atan_ratio", "atan2_ratio", "emoment0", "emoment1", "emoment2"]
 
 # A CasADi SX, MX or DM matrix. Typed ``Any``: casadi's stubs do not type arithmetic across the three.
 Matrix: TypeAlias = Any
 _CASADI = (ca.SX, ca.MX, ca.DM)
 #: The CasADi backend of ``lie._series``: closed forms on CasADi matrices, ``where`` = ``if_else``.
-CASADI = Backend(ca.sin, ca.cos, ca.sqrt, ca.atan, ca.atan2, ca.fmax, ca.if_else)
+CASADI = Backend(ca.sin, ca.cos, ca.sqrt, ca.atan, ca.atan2, ca.fmax, ca.if_else, ca.sinh, ca.cosh, ca.exp)
 
 
 def _matrix(a: Any, name: str) -> Matrix:
@@ -79,6 +79,9 @@ half_cot = _series.bind(_series.HALF_COT, CASADI)
 sinc_half = _series.bind(_series.SINC_HALF, CASADI)
 cos_half = _series.bind(_series.COS_HALF, CASADI)
 atan_ratio = _series.bind(_series.ATAN_RATIO, CASADI)
+emoment0 = _series.bind(_series.EMOMENT0, CASADI)
+emoment1 = _series.bind(_series.EMOMENT1, CASADI)
+emoment2 = _series.bind(_series.EMOMENT2, CASADI)
 
 
 def atan2_ratio(s2: Matrix, c: Matrix) -> Matrix:

@@ -1,6 +1,7 @@
-"""Lie groups: SO(2), SO(3), SE(2), SE(3) and Rⁿ, batched, with exact Jacobians."""
+"""Lie groups: SO(2), SO(3), SE(2), SE(3), Sim(3), SE₂(3), Rⁿ and their products, batched, with exact Jacobians."""
 
 from .base import LieGroup
+from .extended import SE23, Sim3
 from .groups import SE2, SE3, SO2, SO3
 from .rn import Rn, RnGroup
 from .uncertainty import (
@@ -17,6 +18,8 @@ __all__ = [
     "SO3",
     "SE2",
     "SE3",
+    "Sim3",
+    "SE23",
     "Rn",
     "RnGroup",
     "propagate_covariance",

@@ -4,7 +4,7 @@ Every ``0/0``-at-zero coefficient of the Lie-group formulas is *data*, a
 :class:`Coefficient`: a threshold on the angle ``θ``, the Taylor coefficients
 ``c_j`` of its series in ``t = θ²``, and its closed form, written once against a
 small :class:`Backend` namespace (``sin``, ``cos``, ``sqrt``, ``atan``,
-``atan2``, ``fmax``, ``where``). One evaluator, :func:`evaluate`, serves every
+``atan2``, ``fmax``, ``where``, ``sinh``, ``cosh``, ``exp``). One evaluator, :func:`evaluate`, serves every
 backend::
 
     f(t) = Σ_j c_j t^j           where t < threshold²   (Horner)
@@ -53,6 +53,8 @@ __all__ = [
     "half_cot",
     "sinc_half",
     "atan_ratio",
+    "sim3_coefficients",
+    "sim3_inverse_coefficients",
 ]
 
 
@@ -66,9 +68,12 @@ class Backend(NamedTuple):
     atan2: Callable[[Any, Any], Any]
     fmax: Callable[[Any, Any], Any]
     where: Callable[[Any, Any, Any], Any]
+    sinh: Callable[[Any], Any]
+    cosh: Callable[[Any], Any]
+    exp: Callable[[Any], Any]
 
 
-NUMPY = Backend(np.sin, np.cos, np.sqrt, np.arctan, np.arctan2, np.fmax, np.where)
+NUMPY = Backend(np.sin, np.cos, np.sqrt, np.arctan, np.arctan2, np.fmax, np.where, np.sinh, np.cosh, np.exp)
 
 
 @dataclass(frozen=True)
@@ -225,6 +230,30 @@ ATAN_RATIO = Coefficient(
     lambda b, x: b.atan(x) / x,
 )
 
+# The even parts of the moments ∫₀¹ sᵏ e^{sσ} ds of Sim(3) (shifted to s = ½ + x, y = σ/2):
+# ∫_{−½}^{½} xᵏ e^{2xy} dx = y^(k mod 2) · emomentₖ(y), each even in y.
+EMOMENT0 = Coefficient(
+    "emoment0",
+    "sinh y / y = ∫ e^{2xy} dx over [−½, ½]",
+    1e-4,  # no cancellation
+    _taylor(lambda j: 1.0 / factorial(2 * j + 1), 3),
+    lambda b, x: b.sinh(x) / x,
+)
+EMOMENT1 = Coefficient(
+    "emoment1",
+    "(y cosh y − sinh y) / (2y³) = (1/y) ∫ x e^{2xy} dx over [−½, ½]",
+    0.5,
+    _taylor(lambda j: (j + 1) / factorial(2 * j + 3), 8),
+    lambda b, x: (x * b.cosh(x) - b.sinh(x)) / (2.0 * x**3),
+)
+EMOMENT2 = Coefficient(
+    "emoment2",
+    "(y² sinh y − 2y cosh y + 2 sinh y) / (4y³) = ∫ x² e^{2xy} dx over [−½, ½]",
+    1.0,
+    _taylor(lambda j: 1.0 / (4 * (2 * j + 3) * factorial(2 * j)), 10),
+    lambda b, x: ((x * x + 2.0) * b.sinh(x) - 2.0 * x * b.cosh(x)) / (4.0 * x**3),
+)
+
 COEFFICIENTS: tuple[Coefficient, ...] = (
     SINC,
     COSC,
@@ -236,7 +265,72 @@ COEFFICIENTS: tuple[Coefficient, ...] = (
     SINC_HALF,
     COS_HALF,
     ATAN_RATIO,
+    EMOMENT0,
+    EMOMENT1,
+    EMOMENT2,
 )
+
+# Below this |(σ, θ)|² the Sim(3) coefficients b, c take their second-order Taylor polynomials
+# (error O(r³) < 1e-18); above it their closed forms, free of cancellation, are exact to ~1e-15.
+SIM3_ORIGIN2 = 1e-12
+
+
+def sim3_coefficients(sigma: Any, t: Any, backend: Backend = NUMPY) -> tuple[Any, Any, Any]:
+    """``(a, b, c)`` of ``W(σ, θ) = ∫₀¹ e^{sσ} Exp(sθ) ds = a I + b θ^ + c θ^²`` (Sim(3) ``Exp``), ``t = |θ|²``.
+
+    With the moments ``μₖ = ∫₀¹ sᵏ e^{sσ} ds`` (from :data:`EMOMENT0` … at ``y = σ/2``:
+    ``μ₀ = eʸ m₀``, ``μ₁ = eʸ(m₀/2 + y m₁)``, ``μ₂ = eʸ(m₀/4 + y m₁ + m₂)``; for σ < −1, where
+    these cancel, ``μ₁ = (1 + e^σ(σ − 1))/σ²`` and ``μ₂ = (e^σ − 2μ₁)/σ``) and
+    ``w₁ = σ²/(σ² + t)``, ``w₂ = t/(σ² + t)``::
+
+        a = μ₀ = (e^σ − 1)/σ
+        b = w₁ μ₁ + w₂ e^σ (cosc θ − σ sinc3 θ)
+        c = w₁ μ₂/2 + w₂ e^σ (sinc3 θ − σ q_coef2 θ)
+
+    (``b = Im φ(σ + iθ)/θ``, ``c = (φ(σ) − Re φ(σ + iθ))/θ²`` for ``φ(z) = (e^z − 1)/z``, written
+    without the cancellations of the textbook form). At σ = 0 they are SO(3)'s ``Jl``
+    coefficients. Below :data:`SIM3_ORIGIN2` the Taylor polynomials
+    ``b = ½ + σ/3 + σ²/8 − t/24``, ``c = 1/6 + σ/8 + σ²/20 − t/120``.
+    """
+    y = 0.5 * sigma
+    y2 = y * y
+    m0, m1, m2 = (evaluate(c, y2, y, backend) for c in (EMOMENT0, EMOMENT1, EMOMENT2))
+    e = backend.exp(y)
+    es = e * e
+    mu0 = e * m0
+    mu1 = e * (0.5 * m0 + y * m1)
+    mu2 = e * (0.25 * m0 + y * m1 + m2)
+    # For σ < −1 the shifted form cancels (its terms are ~1/|σ|, μ₂ ~ 2/|σ|³): integrate by parts.
+    neg = sigma < -1.0
+    sd = backend.where(neg, sigma, -1.0)
+    ed = backend.exp(sd)
+    mu1_d = (1.0 + ed * (sd - 1.0)) / (sd * sd)
+    mu1 = backend.where(neg, mu1_d, mu1)
+    mu2 = backend.where(neg, (ed - 2.0 * mu1_d) / sd, mu2)
+    cc, s3, q2 = (evaluate(c, t, None, backend) for c in (COSC, SINC3, Q_COEF2))
+    s2 = sigma * sigma
+    r2 = s2 + t
+    origin = r2 < SIM3_ORIGIN2
+    den = backend.where(origin, 1.0, r2)
+    w1, w2 = s2 / den, t / den
+    b = w1 * mu1 + w2 * es * (cc - sigma * s3)
+    c = 0.5 * w1 * mu2 + w2 * es * (s3 - sigma * q2)
+    b = backend.where(origin, 0.5 + sigma * (1.0 / 3.0 + sigma / 8.0) - t / 24.0, b)
+    c = backend.where(origin, 1.0 / 6.0 + sigma * (1.0 / 8.0 + sigma / 20.0) - t / 120.0, c)
+    return mu0, b, c
+
+
+def sim3_inverse_coefficients(a: Any, b: Any, c: Any, t: Any) -> tuple[Any, Any, Any]:
+    """``(α, β, γ)`` with ``(a I + b θ^ + c θ^²)⁻¹ = α I + β θ^ + γ θ^²`` (``θ^³ = −t θ^``).
+
+    Scaled by ``a`` first (``b' = b/a``, ``c' = c/a``, so nothing overflows for large σ):
+    ``d = 1 − t c'``, ``Δ = d² + t b'²``, ``α = 1/a``, ``β = −b'/(aΔ)``,
+    ``γ = (b'² − c' d)/(aΔ)``. Δ > 0 except where ``W`` is singular (σ = 0, θ = 2πk, k ≠ 0).
+    """
+    bp, cp = b / a, c / a
+    d = 1.0 - t * cp
+    delta = a * (d * d + t * bp * bp)
+    return 1.0 / a, -bp / delta, (bp * bp - cp * d) / delta
 
 
 def atan2_ratio(s2: Any, c: Any, backend: Backend = NUMPY) -> Any:

@@ -281,6 +281,34 @@ class LieGroup:
         """``Jl(τ)⁻¹ = Jr(−τ)⁻¹``."""
         return cls._tangent_map(cls._jr_inv, -cls._tangent(tau))
 
+    @classmethod
+    def ad(cls, tau: ArrayLike) -> FloatArray:
+        """Small adjoint ``ad_τ``, ``ad_τ σ = [τ^, σ^]^∨`` (``= d/dt Ad_{Exp(tτ)}`` at 0; Solà eq. 32),
+        ``(..., dim, dim)``."""
+        return cls._tangent_map(cls._ad, cls._tangent(tau))
+
+    @classmethod
+    def _ad(cls, tau: FloatArray) -> FloatArray:
+        """Generic ``ad``: column ``k`` is ``[τ^, E_k]^∨`` for the generators ``E_k = hat(e_k)``."""
+        basis = cls._hat(np.eye(cls.dim))
+        a = cls._hat(tau)[..., None, :, :]
+        return np.swapaxes(cls._vee(a @ basis - basis @ a), -1, -2)
+
+    @classmethod
+    def bch(cls, tau: ArrayLike, sigma: ArrayLike, order: int = 2) -> FloatArray:
+        """Baker–Campbell–Hausdorff: ``Log(Exp(τ)·Exp(σ)) ≈ τ + σ + ½ ad_τ σ``, with ``order=3``
+        also ``+ (ad_τ ad_τ σ + ad_σ ad_σ τ)/12``; the error is ``O(|τ|, |σ|)^{order+1}``."""
+        if order not in (1, 2, 3):
+            raise ValueError(f"bch: order must be 1, 2 or 3, got {order!r}")
+        t, s = cls._tangent(tau), cls._tangent(sigma, "sigma")
+        out = t + s
+        if order >= 2:
+            ts = _matrix.matvec(cls.ad(t), s)
+            out = out + 0.5 * ts
+            if order == 3:
+                out = out + (_matrix.matvec(cls.ad(t), ts) - _matrix.matvec(cls.ad(s), ts)) / 12.0
+        return out
+
     # ---- minimal API --------------------------------------------------------------
 
     @overload

@@ -7,15 +7,32 @@ from typing import Any
 
 import numpy as np
 
-from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn
+from manopt_lie import SE2, SE3, SE23, SO2, SO3, LieGroup, Rn, Sim3
 
-GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Rn(3)]
+GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Sim3, SE23, Rn(3)]
 BATCH_SHAPES: list[tuple[int, ...]] = [(), (1,), (3, 1, 2)]
 REGIMES = ["identity", "tiny", "random", "uniform", "near_pi"]
+# Regimes of one group only: Sim(3) with a large log-scale |σ| = 6 (s = e^±6 ≈ 400^±1; products and
+# quotients of two such elements reach e^±12). Larger |σ| (to ±700): tests/lie/test_new_groups.py.
+EXTRA_REGIMES: dict[type[LieGroup], list[str]] = {Sim3: ["large_scale"]}
 FRAMES = ["right", "left"]
 
 # Slice of the rotation coordinates inside each group's tangent vector.
-ROTATION_PART = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6)}
+ROTATION_PART = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6), Sim3: slice(3, 6)}
+ROTATION_PART[SE23] = slice(6, 9)
+# Slice of the log-scale σ (Sim(3)): 0 in the near-π regime (σ = 0 with θ ≈ π, a hard point).
+SCALE_PART = {Sim3: slice(6, 7)}
+
+
+def cases(groups: list[type[LieGroup]] | None = None) -> list[Any]:
+    """``(group, regime)`` parameters: every group × :data:`REGIMES`, plus its :data:`EXTRA_REGIMES`."""
+    import pytest
+
+    return [
+        pytest.param(g, r, id=f"{group_id(g)}-{r}")
+        for g in (GROUPS if groups is None else groups)
+        for r in REGIMES + EXTRA_REGIMES.get(g, [])
+    ]
 
 
 def group_id(g: type[LieGroup]) -> str:
@@ -33,12 +50,17 @@ def tangent(g: type[LieGroup], regime: str, batch: tuple[int, ...], rng: np.rand
     tau = rng.standard_normal(shape)
     if regime in ("random", "uniform"):
         return tau
+    if regime == "large_scale":
+        tau[..., SCALE_PART[g]] = 6.0 * np.sign(tau[..., SCALE_PART[g]])
+        return tau
     if g not in ROTATION_PART:
         return 30.0 * tau / np.linalg.norm(tau, axis=-1, keepdims=True)
     part = ROTATION_PART[g]
     rot = tau[..., part]
     angle = np.pi - pi_gap * rng.uniform(0.5, 1.0, batch + (1,))
     tau[..., part] = rot / np.linalg.norm(rot, axis=-1, keepdims=True) * angle
+    if g in SCALE_PART:
+        tau[..., SCALE_PART[g]] = 0.0
     return tau
 
 
@@ -95,6 +117,11 @@ def assert_jacobian(j: np.ndarray, j_num: np.ndarray, tol: float = 1e-6) -> None
     scale = np.maximum(1.0, np.abs(j).max(initial=0.0))
     err = np.abs(j - j_num).max(initial=0.0)
     assert err <= tol * scale, f"Jacobian differs from finite differences by {err:.3g}"
+
+
+def size(x: LieGroup) -> float:
+    """``max(1, max |entry|)`` of the matrix form: the scale of an element's round-off."""
+    return max(1.0, float(np.abs(x.as_matrix()).max(initial=0.0)))
 
 
 def assert_same(x: LieGroup, y: LieGroup, tol: float = 1e-12) -> None:
