@@ -35,13 +35,15 @@ def round_solution(y: FloatArray) -> FloatArray:
     ``U_dᵀ Y_i = (Σ_d V_dᵀ)_i``; if fewer than half of them have a positive determinant
     the last row changes sign (``Y`` and its reflection give the same ``YᵀY``); then each
     block is projected onto SO(d) (``U diag(1, …, det UVᵀ) Vᵀ``). A point of rank ``d``
-    that is exactly rotations is returned unchanged up to round-off.
+    is only projected (rotations come back unchanged up to round-off).
     """
     n, p, d = y.shape
-    yt = stacked(y)
-    _, u = np.linalg.eigh(yt.T @ yt)  # ascending
-    ud = u[:, ::-1][:, :d]
-    blocks = np.einsum("pa,npb->nab", ud, y)  # U_dᵀ Y_i
+    if p == d:  # Y Yᵀ = nI: any basis is a leading one, and the identity keeps Y as it is
+        blocks = np.array(y)
+    else:
+        yt = stacked(y)
+        _, u = np.linalg.eigh(yt.T @ yt)  # ascending
+        blocks = u[:, ::-1][:, :d].T @ y  # U_dᵀ Y_i
     if np.count_nonzero(np.linalg.det(blocks) > 0) < n / 2:
         blocks[:, -1, :] *= -1.0
     return project_rotation(blocks)

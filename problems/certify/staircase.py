@@ -31,7 +31,7 @@ from manopt_lie.manifolds import Power, Stiefel
 from manopt_lie.optim import IterationInfo, OptimizeResult, Problem, StoppingCriteria, TrustRegion
 
 from ..graph import MeasurementGraph
-from .certificate import DEFAULT_TOL, Certificate, certify_relaxation, margin, rotations_of
+from .certificate import DEFAULT_TOL, Certificate, certify_relaxation, margin, rotations_of, with_fun
 from .data import Relaxation, relaxation, stacked, unstacked
 from .rounding import lift, round_solution
 
@@ -54,6 +54,7 @@ def default_polish(rel: Relaxation, p: int) -> StoppingCriteria:
     """The rank-``d`` trust region's stopping rule (:data:`GRAD_FLOOR`)."""
     floor = GRAD_FLOOR * rel.scale * math.sqrt(rel.n * rel.d * p)
     return StoppingCriteria(max_iterations=200, grad_rtol=0.0, grad_atol=floor)
+
 
 _REFINEMENTS = 1  # re-solves of one level, 100× tighter, when λ_min fails only by a hair
 _IMPRECISE = 10.0  # λ_min ≥ −10η: maybe imprecision of the critical point, not a saddle
@@ -246,7 +247,7 @@ def escape_saddle(
     -------
     (Y₊, α) or None
     """
-    n, p, d = y.shape
+    n, p, _ = y.shape
     manifold = problem.manifold
     y_aug = lift(y, p + 1)
     y_dot = np.zeros_like(y_aug)
@@ -272,7 +273,7 @@ def _initial_point(graph: MeasurementGraph, x0: Any, p: int, rng: np.random.Gene
         return lift(rotations_of(graph, graph.chordal_initialization())[0], p)
     if isinstance(x0, str):
         if x0 != "random":
-            raise ValueError(f"staircase: x0 must be None, 'chordal', 'random', a solution or Stiefel blocks, got {x0!r}")
+            raise ValueError(f"staircase: x0 must be None, 'chordal', 'random', a solution or blocks, got {x0!r}")
         if p == d:  # St(d, d) = O(d) has two components: start in SO(d), which rounding expects
             from manopt_lie.manifolds import SpecialOrthogonal
 
@@ -302,6 +303,7 @@ def staircase(
     max_rank: int | None = None,
     seed: int | None = None,
     tol: float = DEFAULT_TOL,
+    atol: float | None = None,
     stopping: StoppingCriteria | None = None,
     polish: StoppingCriteria | None = None,
     max_time: float = math.inf,
@@ -334,8 +336,9 @@ def staircase(
         The last level (default ``rank + 10``).
     seed : int, optional
         The random initialization's and the eigensolvers' seed.
-    tol : float
-        The certificates' relative tolerance (:func:`~.certificate.certify`).
+    tol, atol : float
+        The certificates' tolerances (:func:`~.certificate.certify`): ``optimal`` guarantees
+        ``fun − f* ≤ tol·fun + atol``.
     stopping : StoppingCriteria, optional
         The trust region of the levels ``p > d`` (default :data:`DEFAULT_STOPPING`).
     polish : StoppingCriteria, optional
@@ -381,10 +384,10 @@ def staircase(
     def certified(info: IterationInfo) -> bool:
         """Stop the rank-d trust region once its point is certified: only a factorization,
         tried once ``‖grad‖ ≤ 10·√(η‖Q‖)`` (``λ_min ≈ −‖grad‖²/μ`` with ``μ ≤ ‖Q‖``)."""
-        eta = margin(rel, info.fun, info.fun, tol)
+        eta = margin(rel, info.fun, info.fun, tol, atol)
         if info.grad_norm > 10.0 * math.sqrt(eta * rel.scale):
             return False
-        cert = check(np.asarray(info.x), eigenvector=False, quick=True)
+        cert = check(np.asarray(info.x), quick=True)
         if cert.optimal:
             found.append((np.array(info.x), cert))
         return cert.optimal
@@ -398,7 +401,7 @@ def staircase(
         return solver.solve(problem, y0, callback=certified if rank == d else None)
 
     def check(y_: FloatArray, **kw: Any) -> Certificate:
-        cert = certify_relaxation(rel, y_, tol=tol, seed=seed, **kw)
+        cert = certify_relaxation(rel, y_, tol=tol, atol=atol, seed=seed, **kw)
         cert_time[0] += cert.time
         return cert
 
@@ -460,7 +463,10 @@ def staircase(
     rotations = round_solution(yd)
     x = rel.poses(rotations)
     fun = graph.cost(x, "chordal")
-    cert_x = check(rotations, fun=fun)
+    if np.max(np.abs(rotations - yd)) <= 1e-13 and not math.isnan(cert_d.lambda_min):
+        cert_x = with_fun(rel, cert_d, fun)  # the same rotations (up to the floor's round-off)
+    else:
+        cert_x = check(rotations, fun=fun)
     lower = max(cert_x.dual_bound, cert_p.dual_bound)
     if status is StaircaseStatus.OPTIMAL and not cert_x.optimal:
         status = StaircaseStatus.MAX_RANK  # cannot happen but by round-off in building x
