@@ -6,15 +6,18 @@ Installed as ``manopt_lie.problems`` (the repository keeps it in the top-level f
 ``casadi``).
 """
 
-from . import checks, g2o, graph, kinds, pose_graph, rotation_averaging, synthetic
+from . import checks, g2o, graph, kinds, landmarks, pose_graph, rotation_averaging, synthetic
 from .checks import LintReport, lint
-from .graph import MeasurementGraph
+from .graph import Graph, MeasurementGraph
 from .kinds import KINDS, get_kind
+from .landmarks import LandmarkGraph
 from .pose_graph import PoseGraph
 from .rotation_averaging import RotationAveraging
 
 __all__ = [
+    "Graph",
     "MeasurementGraph",
+    "LandmarkGraph",
     "PoseGraph",
     "RotationAveraging",
     "KINDS",
@@ -25,6 +28,7 @@ __all__ = [
     "g2o",
     "graph",
     "kinds",
+    "landmarks",
     "pose_graph",
     "rotation_averaging",
     "synthetic",

@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import Any
 
 from . import g2o, synthetic
-from .graph import MeasurementGraph
-from .kinds import KINDS, get_kind
+from .graph import Graph
+from .kinds import KINDS, convert, convertible, get_kind
 from .pose_graph import PoseGraph
 from .rotation_averaging import RotationAveraging
 
@@ -60,7 +60,7 @@ class Loaded:
     """A catalogue entry made concrete: the problem and, for synthetic ones, the truth."""
 
     entry: Entry
-    spec: MeasurementGraph
+    spec: Graph
     truth: Any = None
 
 
@@ -98,7 +98,7 @@ class Entry:
         if self.generator is not None and self.generator not in GENERATORS:
             raise CatalogueError(f"{where}: generator must be one of {tuple(GENERATORS)}, got {self.generator!r}")
         made = GENERATORS.get(self.generator, PoseGraph.kind) if self.generator is not None else PoseGraph.kind
-        if made != self.problem and made != PoseGraph.kind:  # only pose graphs convert to other kinds
+        if not convertible(made, self.problem):
             raise CatalogueError(f"{where}: the {self.generator} generator makes a {made} problem, not {self.problem}")
         kind = KINDS[self.problem]
         costs = kind.bench_costs if self.costs is None else self.costs
@@ -165,7 +165,7 @@ class Entry:
             spec = g2o.read(path)
         if spec.kind != self.problem:  # e.g. the rotation averaging of a pose graph
             kind = get_kind(self.problem)
-            spec, truth = kind.from_pose_graph(spec), None if truth is None else kind.from_poses(truth)
+            spec, truth = convert(spec, self.problem), None if truth is None else kind.from_truth(truth)
         return Loaded(self, spec, truth)
 
 

@@ -10,7 +10,8 @@ kinds share, written once:
   ``½ Σ r_eᵀ Ω_e r_e`` with ``r_e = Log(Z_e⁻¹ X_i⁻¹ X_j)`` and **chordal**
   ``Σ ‖(X_j − X_i Z_e) W_e‖_F²`` on the top ``d`` rows of the matrices;
 - initializations by name (:meth:`initialize`);
-- what a command line or a benchmark needs to know without asking for the kind:
+- what a command line or a benchmark needs to know without asking for the kind — the
+  interface :class:`Graph`, which every kind implements (landmark graphs too):
   :attr:`kind`, :attr:`noun`, :attr:`dimension`, :meth:`positions` (what to plot)
   and :meth:`to_g2o` (what to write back).
 
@@ -22,7 +23,7 @@ has translations).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,20 +31,95 @@ from numpy.typing import NDArray
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie._matrix import assemble
 from manopt_lie.lie.base import LieGroup
-from manopt_lie.manifolds import LieGroupManifold, Power
+from manopt_lie.manifolds import LieGroupManifold, Manifold, Power
 from manopt_lie.optim import LeastSquaresProblem
 from manopt_lie.optim.losses import RobustLoss
 
 from . import costs, initialization
 
-if TYPE_CHECKING:
-    from .pose_graph import PoseGraph
-
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-class MeasurementGraph(ABC):
+class Graph(ABC):
+    """What a command line or a benchmark asks of any estimation problem built from
+    measurements, whatever its kind (pose graph, rotation averaging, landmark SLAM…).
+
+    Subclasses supply the class attributes :attr:`kind`, :attr:`noun`, :attr:`costs`,
+    :attr:`initializations` and the methods below; the commands never branch on the kind.
+    """
+
+    kind: ClassVar[str]
+    """The problem kind's name, as the command line and the catalogue spell it."""
+    noun: ClassVar[str]
+    """What the variables of the main block are, for messages (``"poses"``)."""
+    costs: ClassVar[tuple[str, ...]]
+    """The costs this kind offers; the first is the default."""
+    initializations: ClassVar[tuple[str, ...]] = ("chordal", "odometry", "random", "file")
+    """The names :meth:`initialize` takes."""
+
+    name: str
+    edges: IntArray
+    """``(m, 2)`` vertex indices of the edges between the main block's variables (what a
+    trajectory plot draws)."""
+
+    @property
+    @abstractmethod
+    def n(self) -> int:
+        """Number of variables of the main block (poses, rotations)."""
+
+    @property
+    @abstractmethod
+    def m(self) -> int:
+        """Number of measurements (of every kind)."""
+
+    @property
+    @abstractmethod
+    def dimension(self) -> int:
+        """The tangent dimension of all variables (the gauge included)."""
+
+    @property
+    @abstractmethod
+    def manifold(self) -> Manifold:
+        """Where the variables live."""
+
+    def describe(self) -> str:
+        """``"1045 poses, 1172 edges"``, for messages."""
+        return f"{self.n} {self.noun}, {self.m} edges"
+
+    @abstractmethod
+    def cost(self, x: Any, cost: str | None = None) -> float:
+        """The value of ``cost`` (default: the first of :attr:`costs`) at ``x``."""
+
+    @abstractmethod
+    def problem(self, cost: str | None = None, *, robust: RobustLoss | str | None = None,
+                repair_information: bool = False) -> LeastSquaresProblem:  # fmt: skip
+        """The least-squares problem of ``cost``, its gauge fixed."""
+
+    @abstractmethod
+    def initialize(self, method: str = "chordal", *, seed: int | None = None) -> Any:
+        """An initial estimate by name (one of :attr:`initializations`)."""
+
+    @abstractmethod
+    def positions(self, x: Any) -> FloatArray | None:
+        """Positions ``(n, d)`` of the main block's variables to draw, or ``None``."""
+
+    @abstractmethod
+    def to_g2o(self, x: Any) -> tuple[Any, Any]:
+        """The graph and the vertex estimates that represent the solution ``x`` in a g2o file."""
+
+    def pose_graph(self) -> Any:
+        """The pose graph within this problem (its poses and relative-pose edges).
+
+        Raises
+        ------
+        ValueError
+            If it has none.
+        """
+        raise ValueError(f"{self.name} is a {self.kind} problem, with no pose graph in it")
+
+
+class MeasurementGraph(Graph):
     """Relative measurements ``Z_e ≈ X_i⁻¹ X_j`` between ``n`` variables of one group.
 
     Subclasses are frozen dataclasses with the fields ``group``, ``edges`` (vertex
@@ -51,15 +127,6 @@ class MeasurementGraph(ABC):
     ids, ``(n,)``), ``fixed`` (vertex indices held fixed by the source), ``name``, and
     :attr:`estimates` (vertex estimates from the source, or ``None``).
     """
-
-    kind: ClassVar[str]
-    """The problem kind's name, as the command line and the catalogue spell it."""
-    noun: ClassVar[str]
-    """What the vertices are, for messages (``"poses"``)."""
-    costs: ClassVar[tuple[str, ...]]
-    """The costs this kind offers; the first is the default."""
-    initializations: ClassVar[tuple[str, ...]] = ("chordal", "odometry", "random", "file")
-    """The names :meth:`initialize` takes."""
 
     group: type[LieGroup]
     edges: IntArray
@@ -82,10 +149,6 @@ class MeasurementGraph(ABC):
     @abstractmethod
     def estimates(self) -> Any:
         """Vertex estimates from the source (batch ``(n,)``), or ``None``."""
-
-    @abstractmethod
-    def to_g2o(self, x: LieGroup) -> tuple[PoseGraph, LieGroup]:
-        """The pose graph and vertex poses that represent the solution ``x`` in a g2o file."""
 
     # ---- validation -----------------------------------------------------------------
 

@@ -1,9 +1,9 @@
-"""The problem kinds a g2o pose graph can be read as, by name.
+"""The problem kinds, by name, and how a graph read from a file becomes one of them.
 
 The command line (``--problem``) and the benchmark catalogue (``problem = …``) turn a
-pose graph into a problem through this table and then only use the
-:class:`~manopt_lie.problems.graph.MeasurementGraph` interface: a new kind is a class
-plus one entry here.
+graph into a problem through :func:`convert` and then only use the
+:class:`~manopt_lie.problems.graph.Graph` interface: a new kind is a class plus one
+entry here.
 """
 
 from __future__ import annotations
@@ -14,14 +14,15 @@ from dataclasses import dataclass
 from manopt_lie.lie.base import LieGroup
 
 from . import rotation_averaging
-from .graph import MeasurementGraph
+from .graph import Graph
+from .landmarks import LandmarkGraph
 from .pose_graph import PoseGraph
 from .rotation_averaging import RotationAveraging
 
 
 @dataclass(frozen=True)
 class Kind:
-    """How to make one problem kind from a pose graph.
+    """One problem kind.
 
     Attributes
     ----------
@@ -30,32 +31,42 @@ class Kind:
     summary : str
         One line for help texts.
     graph : type
-        The :class:`~manopt_lie.problems.graph.MeasurementGraph` subclass; its ``costs``
-        are the costs the kind offers.
+        The :class:`~manopt_lie.problems.graph.Graph` subclass; its ``costs`` are the
+        costs the kind offers.
     bench_costs : tuple of str
         The costs a benchmark instance of this kind runs unless it says otherwise.
-    from_pose_graph : callable
-        ``PoseGraph → MeasurementGraph``.
-    from_poses : callable
-        Poses of the pose graph (e.g. a synthetic ground truth) → this kind's variables.
+    from_graph : callable or None
+        A graph of another kind → this kind (``None``: only graphs of this kind are).
+    from_truth : callable
+        The source's ground truth (e.g. a synthetic instance's poses) → this kind's variables.
+    has_poses : bool
+        Whether its graphs hold a pose graph (:meth:`~manopt_lie.problems.graph.Graph.pose_graph`),
+        so that kinds made from a pose graph can be made from them.
     """
 
     name: str
     summary: str
-    graph: type[MeasurementGraph]
+    graph: type[Graph]
     bench_costs: tuple[str, ...]
-    from_pose_graph: Callable[[PoseGraph], MeasurementGraph]
-    from_poses: Callable[[LieGroup], LieGroup]
+    from_graph: Callable[[Graph], Graph] | None
+    from_truth: Callable[[LieGroup], LieGroup]
+    has_poses: bool = True
+
+
+def _poses(graph: Graph) -> PoseGraph:
+    return graph.pose_graph()
 
 
 KINDS: dict[str, Kind] = {
     kind.name: kind
     for kind in (
-        Kind(PoseGraph.kind, "SE(2)/SE(3) pose-graph optimization", PoseGraph, ("chordal", "geodesic"),
-             lambda g: g, lambda x: x),
+        Kind(PoseGraph.kind, "SE(2)/SE(3) pose-graph optimization (of a landmark file: its poses only)",
+             PoseGraph, ("chordal", "geodesic"), _poses, lambda x: x),
         Kind(RotationAveraging.kind, "rotation averaging of the graph's relative rotations (SO(2)/SO(3))",
-             RotationAveraging, ("chordal",), rotation_averaging.from_pose_graph,
-             lambda x: x.rotation()),  # type: ignore[attr-defined]
+             RotationAveraging, ("chordal",), lambda g: rotation_averaging.from_pose_graph(_poses(g)),
+             lambda x: x.rotation(), has_poses=False),  # type: ignore[attr-defined]
+        Kind(LandmarkGraph.kind, "poses, landmarks seen from them, and pose priors (landmark SLAM)",
+             LandmarkGraph, ("geodesic",), None, lambda x: x),
     )
 }  # fmt: skip
 
@@ -65,3 +76,24 @@ def get_kind(name: str) -> Kind:
     if name not in KINDS:
         raise ValueError(f"problem must be one of {tuple(KINDS)}, got {name!r}")
     return KINDS[name]
+
+
+def convertible(source: str, kind: str) -> bool:
+    """Whether a graph of kind ``source`` can be solved as a ``kind`` problem."""
+    return source == kind or (get_kind(source).has_poses and get_kind(kind).from_graph is not None)
+
+
+def convert(graph: Graph, kind: str | None) -> Graph:
+    """``graph`` as a problem of ``kind`` (``None``: as it is).
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind, or one ``graph`` cannot be made into.
+    """
+    if kind is None or graph.kind == kind:
+        return graph
+    target = get_kind(kind)
+    if target.from_graph is None:
+        raise ValueError(f"{graph.name} is a {graph.kind} problem; it cannot be solved as a {kind} problem")
+    return target.from_graph(graph)

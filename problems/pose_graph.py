@@ -97,3 +97,6 @@ class PoseGraph(MeasurementGraph):
     def to_g2o(self, x: LieGroup) -> tuple[PoseGraph, LieGroup]:
         """This graph with the poses ``x``."""
         return self, x
+
+    def pose_graph(self) -> PoseGraph:
+        return self

@@ -2,7 +2,7 @@
 solve with one optimizer, write the solution as g2o, plot, print a summary or JSON.
 
 The command knows problems only through the
-:class:`~manopt_lie.problems.graph.MeasurementGraph` interface and the kinds registry
+:class:`~manopt_lie.problems.graph.Graph` interface and the kinds registry
 (:mod:`manopt_lie.problems.kinds`), and optimizers through the registry
 (:data:`manopt_lie.optim.OPTIMIZERS`).
 """
@@ -15,7 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer
-from manopt_lie.problems import KINDS, MeasurementGraph, g2o, get_kind
+from manopt_lie.problems import KINDS, g2o
+from manopt_lie.problems.graph import Graph
+from manopt_lie.problems.kinds import convert
 
 from . import _common
 
@@ -28,15 +30,16 @@ def add_parser(commands: Any) -> None:
         description="Solve a g2o pose graph (or the rotation averaging of its rotations) and write the result.",
     )  # fmt: skip
     solve.add_argument("file", type=Path, metavar="FILE.g2o")
-    solve.add_argument("--problem", choices=tuple(KINDS), default=next(iter(KINDS)),
-                       help="; ".join(f"{k.name}: {k.summary}" for k in KINDS.values()) + " (default: %(default)s)")
+    solve.add_argument("--problem", choices=tuple(KINDS),
+                       help="; ".join(f"{k.name}: {k.summary}" for k in KINDS.values())
+                       + " (default: what the file holds)")
     solve.add_argument("--cost", choices=COSTS,
                        help="geodesic: ½Σ rᵀΩr with r = Log(Z⁻¹Xᵢ⁻¹Xⱼ), GTSAM's error; chordal: SE-Sync's "
                        "Frobenius-norm cost (default: geodesic for pose graphs, chordal for rotations)")
     optimizers = "; ".join(f"{e.name}: {e.summary}" for e in OPTIMIZERS.values())
     solve.add_argument("--optimizer", choices=tuple(OPTIMIZERS), default="tr",
                        help=f"{optimizers} (default: %(default)s)")
-    solve.add_argument("--init", choices=MeasurementGraph.initializations, default="chordal",
+    solve.add_argument("--init", choices=Graph.initializations, default="chordal",
                        help="initial guess: chordal relaxation, odometry (spanning tree), random (Haar rotations, "
                        "random translations; see --seed), or file (the file's VERTEX poses) (default: %(default)s)")
     solve.add_argument("--seed", type=int, default=0, help="seed of --init random (default: %(default)s)")
@@ -63,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     _common.output_path(args.out, "--out", inputs=[args.file], force=args.force)
     _common.output_path(args.plot, "--plot", inputs=[args.file])
     tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
-    graph = get_kind(args.problem).from_pose_graph(g2o.read(args.file, **tol))
+    graph = convert(g2o.read(args.file, **tol), args.problem)
     cost = args.cost or graph.costs[0]
     if cost not in graph.costs:
         raise _common.UsageError(f"--cost {cost}: a {graph.kind} problem offers {', '.join(graph.costs)}")
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         _common.print_json(summary)
         return code
     print(
-        f"{args.file.name}: {graph.n} {graph.noun}, {graph.m} edges; "
+        f"{args.file.name}: {graph.describe()}; "
         f"{cost} cost {summary['initial_fun']:.8g} → {result.fun:.8g} by {args.optimizer} in {result.nit} "
         f"iterations, {result.time:.3f} s (+ {init_time:.3f} s {args.init} initialization)\n"
         f"status: {result.message}; ‖grad‖ = {result.grad_norm:.3g}"
@@ -116,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     return code
 
 
-def _plot(args: argparse.Namespace, graph: MeasurementGraph, x0: Any, result: Any, summary: dict[str, Any]) -> None:
+def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary: dict[str, Any]) -> None:
     """Trajectories before and after where the variables have positions, else the convergence."""
     from manopt_lie.bench import plots
     from manopt_lie.bench.record import Run

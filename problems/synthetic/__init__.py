@@ -34,6 +34,7 @@ version of this module.
 """
 
 from .base import DEFAULT_ROTATION_NOISE, DEFAULT_TRANSLATION_NOISE, EXACT_WEIGHT, Instance
+from .landmarks import landmark_world
 from .rotations import rotation_averaging
 from .trajectories import circle2d, cube, grid2d, sphere, torus
 
@@ -45,6 +46,7 @@ __all__ = [
     "circle2d",
     "cube",
     "grid2d",
+    "landmark_world",
     "rotation_averaging",
     "sphere",
     "torus",
