@@ -43,8 +43,12 @@ def vee(m: FloatArray) -> FloatArray:
 
 
 def scale(m: FloatArray) -> FloatArray:
-    """``s`` of ``[[s·R, t], [0, 1]]``: the norm of the first column of ``s·R``."""
-    return np.sqrt(_sq(m[..., :3, 0]))
+    """``s`` of ``[[s·R, t], [0, 1]]``: the norm of the first column of ``s·R``, scaled by its largest
+    entry first (``s`` ranges over 1e±304, whose squares would under- or overflow)."""
+    col = m[..., :3, 0]
+    big = np.abs(col).max(axis=-1)
+    safe = np.where(big > 0.0, big, 1.0)
+    return big * np.sqrt(_sq(col / safe[..., None]))
 
 
 def exp(tau: FloatArray) -> FloatArray:
@@ -76,7 +80,8 @@ def log(m: FloatArray) -> FloatArray:
 def inverse(m: FloatArray) -> FloatArray:
     """``[[(sR)⁻¹, −(sR)⁻¹ t], [0, 1]]`` with ``(sR)⁻¹ = (sR)ᵀ/s²``."""
     sr, t = _matrix.split(m)
-    mi = np.swapaxes(sr, -1, -2) / _scalar(_sq(m[..., :3, 0]))
+    s = _scalar(scale(m))
+    mi = np.swapaxes(sr, -1, -2) / s / s
     return _matrix.assemble(mi, -_matrix.rotate_vectors(mi, t))
 
 
