@@ -1,0 +1,390 @@
+"""Entries of ``H⁻¹`` on the pattern of a sparse Cholesky factor, without the dense inverse.
+
+With a fill-reducing permutation ``P`` and the factor ``P H Pᵀ = L Lᵀ``, the inverse
+``Z = (P H Pᵀ)⁻¹ = L⁻ᵀL⁻¹`` satisfies ``Lᵀ Z = L⁻¹``, an upper-triangular right-hand
+side whose diagonal is known. Split the columns of ``L`` into *supernodes*: runs ``J`` of
+consecutive columns sharing one row structure, ``J`` itself then the rows ``R`` below
+(dense blocks ``L_JJ`` lower triangular and ``L_RJ``). Reading ``Lᵀ Z = L⁻¹`` in the block
+rows ``J`` and the columns ``J`` and ``R`` gives the *Takahashi recursion*
+(Takahashi, Fagan, Chen 1973; Erisman and Tinney 1975)
+
+    B     = L_RJ L_JJ⁻¹
+    Z_RJ  = −Z_RR B
+    Z_JJ  = L_JJ⁻ᵀ L_JJ⁻¹ + Bᵀ Z_RR B
+
+run from the last supernode to the first. It needs ``Z_RR`` only where the filled pattern
+of ``L + Lᵀ`` is (``R`` is a clique of it: ``R`` lies in the row structure of ``J``'s parent
+supernode, whose own block ``Z[rows, rows]`` — its *front* — is complete when ``J`` is
+reached), so ``Z`` is computed on that pattern only, at about the cost of the factorization
+(``Σ |R|²|J|`` flops). The loop runs over supernodes, not columns; everything else
+(structure, panels, the batched inverses ``L_JJ⁻¹``) is vectorized. Asking for a few
+columns restricts the loop to their supernodes and the supernodes' ancestors.
+
+:func:`cholesky_factor` obtains ``(L, P)`` from any :class:`CholeskySolver` backend
+(CHOLMOD's supernodal factor, QDLDL's or SuperLU's ``LDLᵀ`` scaled to ``LLᵀ``);
+:class:`SelectedInverse` runs the recursion and reads entries of ``H⁻¹`` by original
+index; :meth:`CholeskyFactor.solve` is the alternative for a few columns of ``H⁻¹``,
+multi-right-hand-side triangular solves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import ArrayLike, NDArray
+
+from ._backends import BACKENDS, available_backends
+from ._factors import exclusive_cumsum
+from .cholesky import _check_square
+from .errors import SingularSystemError
+
+__all__ = ["CholeskyFactor", "SelectedInverse", "Supernodes", "cholesky_factor"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+
+class CholeskyFactor:
+    """``P H Pᵀ = L Lᵀ``: ``L`` lower triangular (CSC, sorted, diagonal first in each column)
+    and ``perm`` with ``(P H Pᵀ)[i, j] = H[perm[i], perm[j]]``; made by :func:`cholesky_factor`.
+
+    Attributes
+    ----------
+    perm : int array, shape (n,)
+    backend : str
+        The backend that factorized ``H``.
+    """
+
+    def __init__(
+        self,
+        perm: IntArray,
+        backend: str,
+        lower: Callable[[], sp.csc_matrix],
+        solve: Callable[[FloatArray], FloatArray] | None = None,
+    ) -> None:
+        self.perm, self.backend = perm, backend
+        self._lower, self._solve = lower, solve
+        self._L: sp.csc_matrix | None = None
+
+    @property
+    def n(self) -> int:
+        return int(self.perm.size)
+
+    @property
+    def L(self) -> sp.csc_matrix:
+        """The factor ``L`` (extracted from the backend at the first use)."""
+        if self._L is None:
+            self._L = self._lower()
+        return self._L
+
+    def solve(self, B: ArrayLike) -> FloatArray:
+        """``H⁻¹ B`` for a dense ``B`` of shape ``(n, k)``: the backend's multi-right-hand-side
+        solve where it has one (CHOLMOD, SuperLU), else the two triangular solves with ``L``,
+        ``x = Pᵀ L⁻ᵀ L⁻¹ P b``."""
+        b = np.asarray(B, dtype=np.float64)
+        if self._solve is not None:
+            return np.asarray(self._solve(b), dtype=np.float64)
+        y = spla.spsolve_triangular(self.L, b[self.perm], lower=True)
+        x = np.empty_like(b)
+        x[self.perm] = spla.spsolve_triangular(self.L.T.tocsr(), y, lower=False)
+        return x
+
+
+def _cholmod_factor(H: sp.csc_matrix) -> CholeskyFactor:
+    impl = BACKENDS["cholmod"](H.indptr, H.indices)  # its supernodal symbolic analysis
+    impl.factorize(H.data)
+    cvxopt, cholmod = impl._cvxopt, impl._cholmod
+    n = H.shape[0]
+    p = cvxopt.matrix(np.arange(n, dtype=np.float64))
+    cholmod.solve(impl._factor, p, sys=7)  # P b = b[perm]
+    perm = np.asarray(p, dtype=np.float64).reshape(-1).astype(np.intp)
+
+    def solve(b: FloatArray) -> FloatArray:
+        x = cvxopt.matrix(np.asfortranarray(b))
+        cholmod.solve(impl._factor, x)
+        return np.asarray(x, dtype=np.float64).reshape(b.shape, order="F")
+
+    def lower() -> sp.csc_matrix:
+        colptr, rowind, values = cholmod.getfactor(impl._factor).CCS
+        # ``getfactor`` turns the factor simplicial in place, symbolic only: refactorize it
+        # for later solves (the analysis is kept).
+        impl.factorize(H.data)
+        arrays = (np.asarray(a).reshape(-1) for a in (values, rowind, colptr))
+        return sp.csc_matrix(tuple(arrays), shape=(n, n))
+
+    return CholeskyFactor(perm, "cholmod", lower, solve)
+
+
+def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = True) -> sp.csc_matrix:
+    """``L = L₁ D^½`` from a unit lower-triangular ``L₁`` (its diagonal stored, or with
+    ``diagonal=False`` left implicit) and the pivots ``D`` of ``LDLᵀ``. The pattern is kept
+    as stored, structural zeros included (SciPy's sparse sums and products would drop them)."""
+    if not (np.isfinite(d).all() and (d > 0).all()):
+        raise SingularSystemError(f"{name}: H is not positive definite (a pivot is not positive)")
+    m = sp.csc_matrix(unit)
+    m.sort_indices()
+    n, root = m.shape[0], np.sqrt(d)
+    indptr, indices, data = m.indptr.astype(np.intp), m.indices.astype(np.intp), m.data.astype(np.float64)
+    if not diagonal:  # insert the unit diagonal at the head of every column
+        count = np.diff(indptr) + 1
+        head = exclusive_cumsum(count)
+        at = np.ones(head[-1], dtype=bool)
+        at[head[:-1]] = False
+        indices_, data_ = np.empty(head[-1], dtype=np.intp), np.ones(head[-1])
+        indices_[head[:-1]], indices_[at], data_[at] = np.arange(n), indices, data
+        indptr, indices, data = head, indices_, data_
+    data = data * root[np.repeat(np.arange(n), np.diff(indptr))]
+    return sp.csc_matrix((data, indices, indptr), shape=(n, n))
+
+
+def _qdldl_factor(H: sp.csc_matrix) -> CholeskyFactor:
+    impl = BACKENDS["qdldl"](H.indptr, H.indices)
+    impl.factorize(H.data)
+    strict, d, p = impl._solver.factors()  # H = P (I + L) D (I + L)ᵀ Pᵀ with P[p, arange] = 1
+    L = _scaled(strict, np.asarray(d, dtype=np.float64), "QDLDL", diagonal=False)
+    return CholeskyFactor(np.asarray(p, dtype=np.intp), "qdldl", lambda: L)
+
+
+def _superlu_factor(H: sp.csc_matrix) -> CholeskyFactor:
+    impl = BACKENDS["superlu"](H.indptr, H.indices)
+    impl.factorize(H.data)
+    lu = impl._lu
+    # Symmetric mode without pivoting on H[order][:, order]: U = D L₁ᵀ.
+    L = _scaled(lu.L, lu.U.diagonal(), "SuperLU")
+    return CholeskyFactor(impl._order.astype(np.intp), "superlu", lambda: L, impl.solve)
+
+
+_FACTORS = {"cholmod": _cholmod_factor, "qdldl": _qdldl_factor, "superlu": _superlu_factor}
+
+
+def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto") -> CholeskyFactor:
+    """The sparse Cholesky factor ``P H Pᵀ = L Lᵀ`` of a symmetric positive definite ``H``.
+
+    Parameters
+    ----------
+    H : scipy.sparse matrix, shape (n, n)
+        Both triangles stored (as :class:`BlockStructure` builds it).
+    backend : {"auto", "cholmod", "qdldl", "superlu"}
+        As for :class:`~manopt_lie.linalg.CholeskySolver` (the same ordering and analysis);
+        ``"auto"`` takes the first available. CHOLMOD's factor is supernodal (relaxed
+        supernodes, explicit zeros included), which keeps the recursion's loop short.
+
+    Raises
+    ------
+    SingularSystemError
+        If ``H`` is not numerically positive definite.
+    """
+    H = _check_square(H)
+    if not H.has_canonical_format:
+        H = H.copy()
+        H.sum_duplicates()
+    usable = available_backends()
+    name = usable[0] if backend == "auto" else backend
+    if name not in _FACTORS:
+        raise ValueError(f"unknown backend {backend!r}; choose 'auto' or one of {sorted(_FACTORS)}")
+    if name not in usable:
+        raise ValueError(f"backend {name!r} is not installed here; available: {usable}")
+    return _FACTORS[name](H)
+
+
+class Supernodes:
+    """The supernodes of a lower-triangular CSC pattern and where each entry lives.
+
+    Supernode ``s`` owns the columns ``start[s] … start[s] + width[s] − 1`` of ``L``,
+    which share the row list ``rows[row_start[s]:row_start[s + 1]]`` (its own columns
+    first, then ``R_s``); its *panel* is the dense ``(nrows, width)`` block of ``L`` (or
+    of ``Z``) on those rows, stored row-major at ``panel_start[s]`` of a flat buffer. A
+    column joins the previous one's supernode when it is that column's elimination-tree
+    parent with the same rows below it (a fundamental supernode; CHOLMOD's relaxed
+    supernodes arrive padded with zeros and are found whole).
+
+    The recursion needs an elimination pattern: ``R_s`` inside the rows of the parent
+    supernode (the owner of ``R_s``'s first row). A factor whose numerically zero entries
+    were dropped (SciPy's copy of SuperLU's ``L``) is not one; its rows are then completed
+    by the symbolic factorization ``rows_p ← rows_p ∪ R_s`` (a loop over supernodes in
+    elimination order), which restores the structural zeros.
+    """
+
+    def __init__(self, L: sp.csc_matrix) -> None:
+        n, indptr, indices = L.shape[0], L.indptr.astype(np.intp), L.indices.astype(np.intp)
+        count = np.diff(indptr)
+        if (count < 1).any() or (indices[indptr[:-1]] != np.arange(n)).any():
+            raise ValueError("L must store its diagonal first in every column")
+        self.n = n
+        # Column c + 1 continues c's supernode if it is c's first row below the diagonal
+        # and the rows below c + 1 are c's: compare each entry of c + 1 with the entry of c
+        # count[c + 1] places before it.
+        below = np.where(count > 1, indices[np.minimum(indptr[:-1] + 1, indices.size - 1)], -1)
+        joins = (below[:-1] == np.arange(1, n)) & (count[:-1] == count[1:] + 1)
+        col = np.repeat(np.arange(n), count)
+        candidate = np.r_[False, joins][col]
+        q = np.flatnonzero(candidate)
+        differ = np.bincount(col[q], weights=indices[q] != indices[q - count[col[q]]], minlength=n)
+        joins &= differ[1:] == 0
+        self.start: IntArray = np.flatnonzero(np.r_[True, ~joins])
+        self.width: IntArray = np.diff(np.r_[self.start, n])
+        self.owner: IntArray = np.repeat(np.arange(self.start.size), self.width)
+        counts = count[self.start]
+        first = exclusive_cumsum(counts)
+        of = np.repeat(np.arange(self.start.size), counts)
+        rows = indices[indptr[self.start][of] + np.arange(first[-1]) - first[of]]
+        closed = self._index(rows, counts)
+        if not closed:
+            self._index(*self._completed(rows, first))
+        self.panel_start: IntArray = exclusive_cumsum(self.nrows * self.width)
+        if closed:  # column k of a supernode holds its rows k, k + 1, …: entry q goes to panel row k + q
+            s = self.owner[col]
+            k = col - self.start[s]
+            self._scatter = self.panel_start[s] + (k + np.arange(indices.size) - indptr[col]) * self.width[s] + k
+        else:
+            self._scatter, found = self.locate(indices, col)
+            assert found.all(), "completed rows hold every entry of L"
+
+    def _index(self, rows: IntArray, counts: IntArray) -> bool:
+        """Set up the row lists, parents and relative positions; ``False`` if the pattern is
+        not an elimination pattern."""
+        ns = self.start.size
+        self.rows, self.nrows = rows, counts
+        self.row_start: IntArray = exclusive_cumsum(counts)
+        of = np.repeat(np.arange(ns), counts)
+        self._keys = of.astype(np.int64) * self.n + rows  # sorted: by supernode, then row
+        has = counts > self.width
+        self.parent: IntArray = np.full(ns, -1, dtype=np.intp)
+        self.parent[has] = self.owner[rows[self.row_start[:-1][has] + self.width[has]]]
+        in_r = np.arange(rows.size) - self.row_start[of] >= self.width[of]
+        pos, found = self._find(self.parent[of[in_r]], rows[in_r])
+        self.rel: IntArray = pos - self.row_start[self.parent[of[in_r]]]
+        self.rel_start: IntArray = exclusive_cumsum(counts - self.width)
+        return bool(found.all())
+
+    def _completed(self, rows: IntArray, first: IntArray) -> tuple[IntArray, IntArray]:
+        """Row lists closed under elimination: ``rows_p ← rows_p ∪ R_s`` for every
+        supernode ``s`` in order, ``p`` the owner of ``R_s``'s first row."""
+        lists = np.split(rows, first[1:-1])
+        for s, w in enumerate(self.width.tolist()):  # in order: a parent after its children
+            r = lists[s]
+            if r.size > w:
+                p = int(self.owner[r[w]])
+                lists[p] = np.union1d(lists[p], r[w:])
+        return np.concatenate(lists), np.array([r.size for r in lists], dtype=np.intp)
+
+    def _find(self, s: IntArray, r: IntArray) -> tuple[IntArray, NDArray[np.bool_]]:
+        """Position in :attr:`rows` of row ``r`` of supernode ``s`` (vectorized), and whether it is there."""
+        key = s.astype(np.int64) * self.n + r
+        pos = np.minimum(np.searchsorted(self._keys, key), self._keys.size - 1)
+        return pos, self._keys[pos] == key
+
+    def panels(self, data: ArrayLike) -> FloatArray:
+        """The flat panel buffer of the values ``data`` of ``L`` (CSC order); zero elsewhere."""
+        out = np.zeros(int(self.panel_start[-1]))
+        out[self._scatter] = data
+        return out
+
+    def locate(self, rows: ArrayLike, cols: ArrayLike) -> tuple[IntArray, NDArray[np.bool_]]:
+        """Flat panel index of the entries ``(rows, cols)`` of the permuted matrix (either
+        triangle; the lower one is read), and whether each lies on the pattern."""
+        r, c = np.asarray(rows, dtype=np.intp), np.asarray(cols, dtype=np.intp)
+        r, c = np.maximum(r, c), np.minimum(r, c)
+        s = self.owner[c]
+        pos, found = self._find(s, r)
+        return self.panel_start[s] + (pos - self.row_start[s]) * self.width[s] + (c - self.start[s]), found
+
+    def ancestors(self, supernodes: ArrayLike) -> NDArray[np.bool_]:
+        """Mask of the given supernodes and all their ancestors (one vectorized step per tree level)."""
+        mask = np.zeros(self.start.size, dtype=bool)
+        frontier = np.unique(np.asarray(supernodes, dtype=np.intp))
+        while frontier.size:
+            mask[frontier] = True
+            up = self.parent[frontier]
+            frontier = np.unique(up[up >= 0])
+            frontier = frontier[~mask[frontier]]
+        return mask
+
+
+def _diagonal_inverses(nodes: Supernodes, panels: FloatArray, todo: IntArray) -> dict[int, FloatArray]:
+    """``L_JJ⁻¹`` of the supernodes ``todo``, batched over supernodes of equal width."""
+    out: dict[int, FloatArray] = {}
+    for w in np.unique(nodes.width[todo]):  # a few distinct widths
+        group = todo[nodes.width[todo] == w]
+        blocks = panels[nodes.panel_start[group][:, None] + np.arange(w * w)].reshape(-1, w, w)
+        out.update(zip(group.tolist(), np.linalg.inv(blocks), strict=True))
+    return out
+
+
+class SelectedInverse:
+    """``H⁻¹`` on the filled pattern of its Cholesky factor, read by original index.
+
+    Parameters
+    ----------
+    factor : CholeskyFactor
+    columns : int array, optional
+        Original indices of the columns whose entries will be read: the recursion then
+        covers only their supernodes and those supernodes' ancestors. Default: all.
+
+    Notes
+    -----
+    An entry ``(i, j)`` of ``H⁻¹`` is available when ``(P i, P j)`` lies on the pattern of
+    ``L + Lᵀ`` (true for every pair of coordinates of variables that share a factor, and
+    within one variable) and ``j`` (or ``i``) is among ``columns``.
+    """
+
+    def __init__(self, factor: CholeskyFactor, columns: ArrayLike | None = None) -> None:
+        self.factor = factor
+        self.nodes = nodes = Supernodes(factor.L)
+        self._iperm = np.empty(factor.n, dtype=np.intp)
+        self._iperm[factor.perm] = np.arange(factor.n)
+        if columns is None:
+            self.computed = np.ones(nodes.start.size, dtype=bool)
+        else:
+            cols = self._iperm[np.asarray(columns, dtype=np.intp).reshape(-1)]
+            self.computed = nodes.ancestors(nodes.owner[cols])
+        self.z = self._recursion(nodes.panels(factor.L.data))
+
+    def _recursion(self, panels: FloatArray) -> FloatArray:
+        nodes = self.nodes
+        todo = np.flatnonzero(self.computed)
+        inverses = _diagonal_inverses(nodes, panels, todo)
+        parent, width, nrows, start, rel, rel_start = (
+            nodes.parent, nodes.width, nodes.nrows, nodes.panel_start, nodes.rel, nodes.rel_start
+        )  # fmt: skip
+        children = np.bincount(parent[todo][parent[todo] >= 0], minlength=parent.size)
+        z = np.zeros_like(panels)
+        fronts: dict[int, FloatArray] = {}  # Z[rows_s, rows_s] of supernodes whose children are pending
+        for s in todo[::-1].tolist():  # the recursion: parents before children
+            w, nr = int(width[s]), int(nrows[s])
+            li = inverses.pop(s)
+            out = z[start[s] : start[s + 1]].reshape(nr, w)
+            z_rr = None
+            if nr > w:
+                p = int(parent[s])
+                r = rel[rel_start[s] : rel_start[s + 1]]
+                z_rr = fronts[p][np.ix_(r, r)]
+                children[p] -= 1
+                if not children[p]:
+                    del fronts[p]
+                b = panels[start[s] : start[s + 1]].reshape(nr, w)[w:] @ li
+                zb = z_rr @ b
+                out[:w] = li.T @ li + b.T @ zb
+                np.negative(zb, out=out[w:])
+            else:
+                out[:] = li.T @ li
+            if children[s]:
+                front = np.empty((nr, nr))
+                front[:, :w] = out
+                front[:w, w:] = out[w:].T
+                if z_rr is not None:
+                    front[w:, w:] = z_rr
+                fronts[s] = front
+        return z
+
+    def entries(self, rows: ArrayLike, cols: ArrayLike) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """``H⁻¹[rows, cols]`` elementwise (original indices, any broadcastable shapes), and
+        whether each entry was available (see the class notes); unavailable entries read 0."""
+        r, c = np.broadcast_arrays(np.asarray(rows, dtype=np.intp), np.asarray(cols, dtype=np.intp))
+        rp, cp = self._iperm[r], self._iperm[c]
+        index, found = self.nodes.locate(rp, cp)
+        found &= self.computed[self.nodes.owner[np.minimum(rp, cp)]]
+        return np.where(found, self.z[np.where(found, index, 0)], 0.0), found
