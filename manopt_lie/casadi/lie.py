@@ -1,4 +1,4 @@
-"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices.
+"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices (Sim3, SE23, Rn, bundles: ``.lie_extended``).
 
 Elements are CasADi matrices in the numpy groups' matrix form (CONVENTIONS §2):
 rotations ``d×d``, rigid motions ``(d+1)×(d+1)`` homogeneous matrices whose
@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ShapeError
-from ..lie import SE2, SE3, SO2, SO3, LieGroup, _series
+from ..lie import SE2, SE3, SO2, SO3, BundleGroup, LieGroup, RnGroup, _series
 from ..lie._series import Backend
 
 __all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix", "CASADI", "horner"]
@@ -487,15 +487,25 @@ _TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {SO2: SymSO2, SO3: SymSO3, S
 
 
 def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
-    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``.
+    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``; also Sim3, SE23,
+    ``Rn(n)`` and ``Bundle(...)`` of these (:mod:`.lie_extended`, twins made once per class).
 
     Raises
     ------
     TypeError
-        For anything but ``SO2``, ``SO3``, ``SE2``, ``SE3``.
+        For any other group.
     """
-    try:
-        return _TWINS[group]
-    except (KeyError, TypeError):
+    from . import lie_extended as ext  # imports this module: load it on first use
+
+    twin = _TWINS.get(group) or ext.TWINS.get(group) if isinstance(group, type) else None
+    if twin is None and isinstance(group, type) and issubclass(group, RnGroup):
+        twin = ext.sym_rn(group)
+    if twin is None and isinstance(group, type) and issubclass(group, BundleGroup):
+        twin = ext.sym_bundle(group, tuple(symbolic(p) for p in group.parts))
+    if twin is None:
         name = getattr(group, "__name__", repr(group))
-        raise TypeError(f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3") from None
+        raise TypeError(
+            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, SE23, "
+            "Rn(n) and Bundles of these"
+        )
+    return twin

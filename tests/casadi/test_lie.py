@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, Rn, ShapeError
+from manopt_lie import SE2, SE3, SE23, SO2, SO3, Bundle, LieGroup, Rn, ShapeError, Sim3
 from manopt_lie.casadi import SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
 from manopt_lie.casadi import lie as casadi_lie
 from manopt_lie.lie import _series
@@ -207,8 +207,13 @@ def test_mx_and_numbers():
 
 def test_twin_lookup_and_bad_input():
     assert [symbolic(g) for g in (SO2, SO3, SE2, SE3)] == TWINS
-    with pytest.raises(TypeError, match="no symbolic twin of R3"):
-        symbolic(Rn(3))
+    assert symbolic(Rn(3)) is symbolic(Rn(3)) and symbolic(Rn(3)).group is Rn(3)
+
+    class Other(LieGroup):
+        pass
+
+    with pytest.raises(TypeError, match="no symbolic twin of Other"):
+        symbolic(Other)
     with pytest.raises(ShapeError, match="vector of 3 entries"):
         SymSO3.exp(ca.SX.sym("t", 2))
     with pytest.raises(ShapeError, match="4×4"):
@@ -292,3 +297,73 @@ def test_numpy_and_casadi_atan2_ratio_agree():
     hess = ca.Function("h", [s2, w], [ca.hessian(casadi_lie.atan2_ratio(s2, w), ca.vertcat(s2, w))[0]])
     np.testing.assert_allclose(np.array(grad(0.0, 1.0)).ravel(), [-1.0 / 3.0, -1.0], rtol=1e-15)
     assert np.isfinite(np.array(hess(0.0, 1.0))).all()
+
+
+# ---- the twins of Sim3, SE23, Rn and bundles (casadi.lie_extended) ----------------------------
+
+NEW = [Sim3, SE23, Rn(3), Bundle(SO3, Rn(3)), Bundle(SE2, Sim3)]
+
+
+def _new_tangent(group: type[LieGroup], regime: str, rng: np.random.Generator) -> np.ndarray:
+    tau = rng.standard_normal(group.dim)
+    if regime == "identity":
+        return np.zeros(group.dim)
+    if regime == "tiny":
+        return 1e-8 * tau
+    if regime == "near_pi" and group in (Sim3, SE23):
+        part = slice(3, 6) if group is Sim3 else slice(6, 9)
+        tau[part] *= (np.pi - 1e-9) / np.linalg.norm(tau[part])
+        if group is Sim3:
+            tau[6] = 0.0
+    if regime == "large_scale" and group is Sim3:
+        tau[6] = 6.0 * np.sign(tau[6])
+    return tau
+
+
+@pytest.mark.parametrize("group", NEW, ids=lambda g: g.__name__)
+@pytest.mark.parametrize("regime", ["identity", "tiny", "random", "near_pi", "large_scale"])
+def test_new_twins_agree_with_numpy(group, regime):
+    rng = np.random.default_rng(3)
+    sym = symbolic(group)
+    assert sym.group is group and symbolic(group) is sym
+    k, d = sym.size, sym.dim
+    mx, my = ca.SX.sym("x", k, k), ca.SX.sym("y", k, k)
+    tau, p = ca.SX.sym("t", d), ca.SX.sym("p", group.point_dim)
+    x, y = sym.from_matrix(mx), sym.from_matrix(my)
+    outs = [sym.exp(tau), sym.log(x), sym.compose(x, y), sym.inverse(x), sym.act(x, p), sym.adjoint(x)]
+    outs += [
+        sym.rplus(x, tau),
+        sym.rminus(y, x),
+        sym.lplus(x, tau),
+        sym.between(x, y),
+        sym.hat(tau),
+        sym.vee(sym.hat(tau)),
+    ]
+    f = ca.Function("f", [mx, my, tau, p], [ca.densify(ca.SX(o)) for o in outs])
+    for _ in range(5):
+        t = _new_tangent(group, regime, rng)
+        xs, ys = group.exp(_new_tangent(group, regime, rng)), group.exp(_new_tangent(group, regime, rng))
+        pt = rng.standard_normal(group.point_dim)
+        refs = [group.exp(t).as_matrix(), xs.log(), (xs @ ys).as_matrix(), xs.inverse().as_matrix(), xs.act(pt)]
+        refs += [xs.adjoint(), xs.rplus(t).as_matrix(), ys.rminus(xs), xs.lplus(t).as_matrix()]
+        refs += [xs.between(ys).as_matrix(), group.hat(t), t]
+        for got, ref in zip(f(xs.as_matrix(), ys.as_matrix(), t, pt), refs, strict=True):
+            got = np.array(got).reshape(ref.shape)
+            np.testing.assert_allclose(got, ref, rtol=0, atol=TOL * max(1.0, np.abs(ref).max()))
+
+
+@pytest.mark.parametrize("group", NEW, ids=lambda g: g.__name__)
+def test_new_twins_right_jacobians_match_numpy(group):
+    """CasADi's derivatives through the chart are the numpy right Jacobians of rplus (Sim3: the doubling)."""
+    rng = np.random.default_rng(4)
+    sym = symbolic(group)
+    k, d = sym.size, sym.dim
+    mx, tau, dx, dt = ca.SX.sym("x", k, k), ca.SX.sym("t", d), ca.SX.sym("dx", d), ca.SX.sym("dt", d)
+    x = sym.from_matrix(mx)
+    err = sym.rminus(sym.rplus(sym.rplus(x, dx), tau + dt), sym.rplus(x, tau))
+    fn = ca.Function("j", [mx, tau, dx, dt], [ca.jacobian(err, dx), ca.jacobian(err, dt)])
+    xs, ts = group.random(rng), 0.7 * rng.standard_normal(d)
+    j_x, j_t = (np.array(o) for o in fn(xs.as_matrix(), ts, np.zeros(d), np.zeros(d)))
+    _, ref_x, ref_t = xs.rplus(ts, jac=True)
+    np.testing.assert_allclose(j_x, ref_x, atol=1e-11 * max(1.0, np.abs(ref_x).max()))
+    np.testing.assert_allclose(j_t, ref_t, atol=1e-11 * max(1.0, np.abs(ref_t).max()))
