@@ -207,9 +207,13 @@ def certify_relaxation(
     optimal = lower >= -eta and gap <= allowed
     if optimal:
         message = f"certified: S + ηI ≻ 0 with η = {eta:.3e}, so f − f* ≤ {gap:.3e}"
+    elif lost > allowed:
+        message = (
+            f"not certified: the translations lose {lost:.3e} against the optimal ones for these rotations, "
+            f"more than tol·|f| + atol = {allowed:.3e}"
+        )
     elif lower >= -eta:
-        why = "the translations are suboptimal" if lost > allowed else "the tolerance is below the test's resolution"
-        message = f"S + ηI ≻ 0, but f − f* ≤ {gap:.3e} exceeds tol·|f| + atol = {allowed:.3e}: {why}"
+        message = f"S + ηI ≻ 0, but the gap bound {gap:.3e} exceeds tol·|f| + atol = {allowed:.3e} (the resolution)"
     elif math.isnan(theta):
         message = "not certified: the factorization test failed (λ_min not computed)"
     else:

@@ -187,12 +187,14 @@ class _Cost:
         return 2.0 * unstacked(self.rel.q(stacked(u)), self.rel.n)
 
 
-def relaxation_problem(rel: Relaxation, p: int) -> Problem:
+def relaxation_problem(rel: Relaxation, p: int, *, retraction: str = "qr") -> Problem:
     """The rank-``p`` relaxation as a :class:`~manopt_lie.optim.Problem` on
-    ``Power(Stiefel(p, d), n)``: ``f(Y) = tr(Y Q Yᵀ)``, ``egrad = 2YQ``, ``ehess[V] = 2VQ``
-    (as arrays ``(n, p, d)``)."""
+    ``Power(Stiefel(p, d, retraction), n)``: ``f(Y) = tr(Y Q Yᵀ)``, ``egrad = 2YQ``,
+    ``ehess[V] = 2VQ`` (as arrays ``(n, p, d)``); Stiefel's ``egrad2rgrad``/``ehess2rhess``
+    make them Riemannian. The QR retraction is the cheapest; the polar one is second order
+    (what a Hessian check along the retraction needs away from critical points)."""
     f = _Cost(rel)
-    return Problem(Power(Stiefel(p, rel.d), rel.n), f.cost, egrad=f.egrad, ehess=f.ehess)
+    return Problem(Power(Stiefel(p, rel.d, retraction), rel.n), f.cost, egrad=f.egrad, ehess=f.ehess)
 
 
 def horizontal(y: FloatArray, z: FloatArray) -> FloatArray:
