@@ -108,7 +108,6 @@ def _range(measured: FloatArray) -> Part:
 def _bearing(measured: FloatArray, name: str, min_range: float) -> tuple[Part, int, int]:
     """The bearing part for angles ``(m,)`` (2-D) or directions ``(m, 3)`` (3-D), its residual
     dimension and the space dimension."""
-    m = measured.shape[0]
     if measured.ndim == 1:
         cos_sin = np.stack([np.cos(measured), np.sin(measured)], axis=-1)
 
@@ -116,8 +115,6 @@ def _bearing(measured: FloatArray, name: str, min_range: float) -> tuple[Part, i
             return geo.angle_part(p, cos_sin, min_range, jac)
 
         return angle, 1, 2
-    if measured.shape != (m, 3):
-        raise ShapeError(f"{name}: bearings must be angles (m,) or directions (m, 3), got {measured.shape}")
     n = geo.norm(measured)
     if not (n > 0).all():
         raise ValueError(f"{name}: zero bearing direction at edge {int(np.argmax(~(n > 0)))}")
@@ -132,6 +129,8 @@ def _bearing(measured: FloatArray, name: str, min_range: float) -> tuple[Part, i
 
 def _bearings(bearings: ArrayLike, m: int, name: str) -> FloatArray:
     a = np.asarray(bearings, dtype=np.float64)
+    if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != 3):
+        raise ShapeError(f"{name}: bearings must be angles (m,) or directions (m, 3), got {a.shape}")
     return measurements(a, (3,) if a.ndim == 2 else (), m, name, "bearings")
 
 

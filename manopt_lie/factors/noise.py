@@ -307,8 +307,9 @@ class Diagonal(NoiseModel):
         Naming the edges.
     """
 
-    __slots__ = ("_inv",)
-    _inv: FloatArray  # 1/σ, trailing axis k (or 1 for isotropic models)
+    __slots__ = ("_inv", "_sigmas")
+    _sigmas: FloatArray  # σ, trailing axis k (or 1 for isotropic models)
+    _inv: FloatArray  # 1/σ, likewise
 
     def __init__(self, sigmas: ArrayLike) -> None:
         s = _array(sigmas, type(self).__name__)
@@ -327,8 +328,9 @@ class Diagonal(NoiseModel):
             inv = 1.0 / s
         if not np.isfinite(inv).all():
             raise NonFiniteNoiseError(f"{owner}: 1/σ overflows the float range (sigmas below {np.min(s):.3g})")
-        inv.flags.writeable = False
-        self._inv = inv
+        s = s.copy()
+        inv.flags.writeable = s.flags.writeable = False
+        self._inv, self._sigmas = inv, s
         self.dim = dim
         self.edges = None if shared else s.shape[0]
 
@@ -336,13 +338,13 @@ class Diagonal(NoiseModel):
     def sigmas(self) -> FloatArray:
         """``σ``: ``(k,)`` if shared, else ``(m, k)``."""
         shape = (self.dim,) if self.edges is None else (self.edges, self.dim)
-        return np.broadcast_to(1.0 / self._inv, shape).copy()
+        return np.broadcast_to(self._sigmas, shape).copy()
 
     def whiten(self, r: FloatArray) -> FloatArray:
-        return r * self._inv
+        return r / self._sigmas
 
     def whiten_jacobian(self, j: FloatArray) -> FloatArray:
-        return j * self._inv[..., :, None]
+        return j / self._sigmas[..., :, None]
 
     @property
     def sqrt_information(self) -> FloatArray:
