@@ -9,7 +9,8 @@ For each operation the median of ``--repeat`` runs is reported for manopt_lie
 and for SciPy (``Rotation.from_rotvec / as_rotvec / * / apply``), with the ratio
 ours/SciPy (goal: ≤ 1.5). A per-element Python loop over ``--loop-n`` elements
 shows what vectorization buys. A second table gives the throughput of every
-group's batched operations.
+group's batched operations; a third compares Sim3, SE23 and a Bundle with SE3 at
+``--new-n`` elements (default 10⁶), with ratios.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from manopt_lie import SE2, SE3, SO2, SO3, Rn
+from manopt_lie import SE2, SE3, SE23, SO2, SO3, Bundle, Rn, Sim3
 from manopt_lie.bench.timing import median_time
 
 
@@ -86,6 +87,29 @@ def bench_all_groups(n: int, repeat: int, rng: np.random.Generator) -> list[dict
     return rows
 
 
+def bench_new_groups(n: int, repeat: int, rng: np.random.Generator) -> list[dict[str, Any]]:
+    """Sim3, SE23 and a Bundle against SE3 at ``n`` elements: ns per element and the ratio to SE3."""
+    rows: list[dict[str, Any]] = []
+    for group in (SE3, Sim3, SE23, Bundle(SO3, Rn(3))):
+        tau = 0.5 * rng.standard_normal((n, group.dim))
+        x, y = group.exp(tau), group.random(rng, (n,))
+        p = rng.standard_normal((n, group.point_dim))
+        ops = {
+            "exp": lambda: group.exp(tau),
+            "log": lambda: x.log(),
+            "compose": lambda: x @ y,
+            "act": lambda: x.act(p),
+            "jr": lambda: group.jr(tau),
+        }
+        row: dict[str, Any] = {"group": group.__name__, "n": n}
+        row.update({f"{k}_ns": 1e9 * seconds(f, repeat) / n for k, f in ops.items()})
+        rows.append(row)
+    for row in rows:
+        for k in ("exp", "log", "compose", "act", "jr"):
+            row[f"{k}/SE3"] = row[f"{k}_ns"] / rows[0][f"{k}_ns"]
+    return rows
+
+
 def print_table(title: str, rows: list[dict[str, Any]], fmt: dict[str, str]) -> None:
     try:
         from rich.console import Console
@@ -111,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     parser.add_argument("--loop-n", type=int, default=10_000, help="elements in the per-element Python loop")
     parser.add_argument("--repeat", type=int, default=7, help="timed runs per case (median reported)")
+    parser.add_argument("--new-n", type=int, default=1_000_000, help="batch size of the Sim3/SE23 vs SE3 table")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args(argv)
@@ -133,9 +158,15 @@ def main(argv: list[str] | None = None) -> int:
     print_table(
         f"All groups, {args.n // 10:,} elements: ns per element", groups, {k: ".0f" for k in groups[0] if k != "group"}
     )
+    new = bench_new_groups(args.new_n, max(1, args.repeat // 2), rng)
+    print_table(
+        f"Sim3, SE23, Bundle(SO3, R3) vs SE3, {args.new_n:,} elements: ns per element and ratio to SE3",
+        new,
+        {k: (".2f" if "/" in k else ".0f") for k in new[0] if k != "group"},
+    )
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"vs_scipy": vs_scipy, "groups": groups}, f, indent=2)
+            json.dump({"vs_scipy": vs_scipy, "groups": groups, "new_groups": new}, f, indent=2)
     return 0
 
 
