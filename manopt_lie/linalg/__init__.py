@@ -17,6 +17,7 @@ from .cholesky import CholeskySolver
 from .errors import SingularSystemError
 from .linear_solver import LINEAR_SOLVERS, LinearSolver, get_linear_solver
 from .pcg import PCGResult, PCGSolver, block_jacobi, pcg_solve
+from .selected_inverse import CholeskyFactor, SelectedInverse, Supernodes, cholesky_factor
 from .structure import BlockStructure
 
 __all__ = [
@@ -30,4 +31,8 @@ __all__ = [
     "PCGResult",
     "block_jacobi",
     "pcg_solve",
+    "CholeskyFactor",
+    "SelectedInverse",
+    "Supernodes",
+    "cholesky_factor",
 ]

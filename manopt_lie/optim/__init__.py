@@ -8,6 +8,7 @@ from .conjugate_gradient import ConjugateGradient
 from .gradient_descent import GradientDescent
 from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
 from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
+from .marginals import MarginalCovariances, gtsam_tangent_order, marginal_covariances, to_gtsam_order, to_left_frame
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt, NonlinearLeastSquares
 from .optimizer import Optimizer, StoppingCriteria
 from .preconditioners import PRECONDITIONERS, Preconditioner
@@ -44,4 +45,9 @@ __all__ = [
     "Status",
     "History",
     "IterationInfo",
+    "marginal_covariances",
+    "MarginalCovariances",
+    "to_left_frame",
+    "to_gtsam_order",
+    "gtsam_tangent_order",
 ]
