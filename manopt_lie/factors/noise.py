@@ -209,7 +209,8 @@ def _spd_cholesky(a: FloatArray, owner: str, what: str) -> FloatArray:
     axes = (-2, -1)
     _finite(a, owner, shared, axes if not shared else ())
     scale = np.max(np.abs(a), axis=axes)
-    skew = np.max(np.abs(a - np.swapaxes(a, -1, -2)), axis=axes)
+    with np.errstate(over="ignore"):  # entries near the float range: a skew of inf is still > 1e-9·scale
+        skew = np.max(np.abs(a - np.swapaxes(a, -1, -2)), axis=axes)
     asymmetric = skew > SYMMETRY_RTOL * scale
     if np.any(asymmetric):
         raise IndefiniteNoiseError(

@@ -136,9 +136,10 @@ def rotation_factor(
         \frac{\partial r}{\partial \theta_j} = J_r^{-1}(r), \qquad
         \frac{\partial r}{\partial \theta_i} = -J_r^{-1}(r)\, R_j^\top R_i
 
-    On SO(d) variables it is :func:`between_factor`. On SE(d) poses the Jacobians are on
-    the full pose tangent ``(ρ, θ)``: zero on the translation columns, the above on the
-    rotation ones (a right perturbation ``X·Exp(ρ, θ)`` turns ``R`` into ``R·Exp(θ)``).
+    (``R_jᵀR_i = Ad_{(R_iᵀR_j)⁻¹}``; ``1`` on SO(2)). On SO(d) variables it is
+    :func:`between_factor`. On SE(d) poses the Jacobians are on the full pose tangent
+    ``(ρ, θ)``: zero on the translation columns, the above on the rotation ones (a right
+    perturbation ``X·Exp(ρ, θ)`` turns ``R`` into ``R·Exp(θ)``).
     Which case applies is read from the points' group at each call.
 
     Parameters

@@ -116,6 +116,16 @@ def test_bad_matrices_are_refused_naming_the_edge(rng, model):
         model("information")
 
 
+def test_matrices_near_the_float_range():
+    """Entries near 1e308: refused or accepted by what they are, without overflow warnings."""
+    with pytest.raises(IndefiniteNoiseError, match="not symmetric"):
+        Information([[1e308, -1e308], [1e308, 1e308]])
+    with pytest.raises(IndefiniteNoiseError, match="not positive definite"):
+        Covariance([[1e308, 1e308], [1e308, 1e308]])
+    np.testing.assert_allclose(Information(np.diag([1e308, 1e-308])).sqrt_information, np.diag([1e154, 1e-154]))
+    np.testing.assert_allclose(Covariance(np.diag([1e308, 1e-308])).sqrt_information, np.diag([1e-154, 1e154]))
+
+
 def test_round_off_asymmetry_is_accepted(rng):
     omega = spd(rng, 4, 3)
     omega[:, 0, 1] *= 1 + 1e-13

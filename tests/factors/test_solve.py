@@ -51,18 +51,40 @@ def world(rng: np.random.Generator, d: int, *, rn: bool = False, n: int = 8, lan
     pl = ("poses", "landmarks")
     factors = [
         prior_factor([0], truth[0], Information(omega), name="prior", blocks="poses"),
-        between_factor(odometry, truth[odometry[:, 0]].between(truth[odometry[:, 1]]), Information(omega),
-                       name="odometry", blocks="poses"),  # fmt: skip
-        rotation_factor(loops, truth[loops[:, 0]].rotation().between(truth[loops[:, 1]].rotation()),
-                        Isotropic(0.05, k - d), name="loop rotations", blocks="poses"),  # fmt: skip
-        pose_range_factor(loops, np.linalg.norm(truth[loops[:, 1]].translation() - truth[loops[:, 0]].translation(),
-                                                axis=1), name="loop ranges", blocks="poses"),  # fmt: skip
+        between_factor(
+            odometry,
+            truth[odometry[:, 0]].between(truth[odometry[:, 1]]),
+            Information(omega),
+            name="odometry",
+            blocks="poses",
+        ),
+        rotation_factor(
+            loops,
+            truth[loops[:, 0]].rotation().between(truth[loops[:, 1]].rotation()),
+            Isotropic(0.05, k - d),
+            name="loop rotations",
+            blocks="poses",
+        ),
+        pose_range_factor(
+            loops,
+            np.linalg.norm(truth[loops[:, 1]].translation() - truth[loops[:, 0]].translation(), axis=1),
+            name="loop ranges",
+            blocks="poses",
+        ),
         relative_point_factor(obs[::2], p[::2], Isotropic(0.1, d), offset=sensor, name="points", blocks=pl),
-        range_bearing_factor(obs[1::2], np.linalg.norm(p[1::2], axis=1), bearings[1::2],
-                             Diagonal([0.1] + [0.01] * (d - 1)), offset=sensor, name="range-bearing", blocks=pl),  # fmt: skip
+        range_bearing_factor(
+            obs[1::2],
+            np.linalg.norm(p[1::2], axis=1),
+            bearings[1::2],
+            Diagonal([0.1] + [0.01] * (d - 1)),
+            offset=sensor,
+            name="range-bearing",
+            blocks=pl,
+        ),
         range_factor(obs, np.linalg.norm(p, axis=1), Isotropic(0.2, 1), offset=sensor, name="ranges", blocks=pl),
-        bearing_factor(obs, bearings, Isotropic(0.02, d - 1), offset=sensor, name="bearings", blocks=pl,
-                       loss="huber:1.0"),  # fmt: skip
+        bearing_factor(
+            obs, bearings, Isotropic(0.02, d - 1), offset=sensor, name="bearings", blocks=pl, loss="huber:1.0"
+        ),
     ]
     point_manifold = LieGroupManifold(Rn(d)) if rn else Euclidean(d)
     manifold = Blocks({"poses": Power(LieGroupManifold(group), n), "landmarks": Power(point_manifold, landmarks)})
