@@ -30,15 +30,15 @@ multi-right-hand-side triangular solves.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
-from ._backends import BACKENDS, available_backends
 from ._factors import exclusive_cumsum
-from .cholesky import _check_square
+from .cholesky import CholeskySolver, _check_square
 from .errors import SingularSystemError
 
 __all__ = ["CholeskyFactor", "SelectedInverse", "Supernodes", "cholesky_factor"]
@@ -93,25 +93,27 @@ class CholeskyFactor:
         return x
 
 
-def _cholmod_factor(H: sp.csc_matrix) -> CholeskyFactor:
-    impl = BACKENDS["cholmod"](H.indptr, H.indices)  # its supernodal symbolic analysis
-    impl.factorize(H.data)
+def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     cvxopt, cholmod = impl._cvxopt, impl._cholmod
     n = H.shape[0]
     p = cvxopt.matrix(np.arange(n, dtype=np.float64))
     cholmod.solve(impl._factor, p, sys=7)  # P b = b[perm]
     perm = np.asarray(p, dtype=np.float64).reshape(-1).astype(np.intp)
 
+    numeric = [True]  # whether impl._factor holds a numeric factorization
+
     def solve(b: FloatArray) -> FloatArray:
+        if not numeric[0]:
+            impl.factorize(H.data)  # the analysis is kept
+            numeric[0] = True
         x = cvxopt.matrix(np.asfortranarray(b))
         cholmod.solve(impl._factor, x)
         return np.asarray(x, dtype=np.float64).reshape(b.shape, order="F")
 
     def lower() -> sp.csc_matrix:
+        # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize.
         colptr, rowind, values = cholmod.getfactor(impl._factor).CCS
-        # ``getfactor`` turns the factor simplicial in place, symbolic only: refactorize it
-        # for later solves (the analysis is kept).
-        impl.factorize(H.data)
+        numeric[0] = False
         arrays = (np.asarray(a).reshape(-1) for a in (values, rowind, colptr))
         return sp.csc_matrix(tuple(arrays), shape=(n, n))
 
@@ -140,17 +142,13 @@ def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = Tru
     return sp.csc_matrix((data, indices, indptr), shape=(n, n))
 
 
-def _qdldl_factor(H: sp.csc_matrix) -> CholeskyFactor:
-    impl = BACKENDS["qdldl"](H.indptr, H.indices)
-    impl.factorize(H.data)
+def _qdldl_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     strict, d, p = impl._solver.factors()  # H = P (I + L) D (I + L)ᵀ Pᵀ with P[p, arange] = 1
     L = _scaled(strict, np.asarray(d, dtype=np.float64), "QDLDL", diagonal=False)
     return CholeskyFactor(np.asarray(p, dtype=np.intp), "qdldl", lambda: L)
 
 
-def _superlu_factor(H: sp.csc_matrix) -> CholeskyFactor:
-    impl = BACKENDS["superlu"](H.indptr, H.indices)
-    impl.factorize(H.data)
+def _superlu_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     lu = impl._lu
     # Symmetric mode without pivoting on H[order][:, order]: U = D L₁ᵀ.
     L = _scaled(lu.L, lu.U.diagonal(), "SuperLU")
@@ -160,7 +158,7 @@ def _superlu_factor(H: sp.csc_matrix) -> CholeskyFactor:
 _FACTORS = {"cholmod": _cholmod_factor, "qdldl": _qdldl_factor, "superlu": _superlu_factor}
 
 
-def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto") -> CholeskyFactor:
+def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol: float = 1e-6) -> CholeskyFactor:
     """The sparse Cholesky factor ``P H Pᵀ = L Lᵀ`` of a symmetric positive definite ``H``.
 
     Parameters
@@ -168,26 +166,26 @@ def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto") -> Chole
     H : scipy.sparse matrix, shape (n, n)
         Both triangles stored (as :class:`BlockStructure` builds it).
     backend : {"auto", "cholmod", "qdldl", "superlu"}
-        As for :class:`~manopt_lie.linalg.CholeskySolver` (the same ordering and analysis);
-        ``"auto"`` takes the first available. CHOLMOD's factor is supernodal (relaxed
-        supernodes, explicit zeros included), which keeps the recursion's loop short.
+        A :class:`~manopt_lie.linalg.CholeskySolver` backend (its ordering, analysis and
+        checks); ``"auto"`` takes the first available. CHOLMOD's factor is supernodal
+        (relaxed supernodes, explicit zeros included), which keeps the recursion's loop short.
+    rtol : float
+        The solver's probe-residual tolerance: ``H`` with a condition number beyond about
+        ``0.1/rtol`` counts as singular (:class:`~manopt_lie.linalg.CholeskySolver`).
 
     Raises
     ------
     SingularSystemError
-        If ``H`` is not numerically positive definite.
+        If ``H`` is not numerically positive definite (e.g. a pose graph without a fixed gauge).
     """
+    solver = CholeskySolver(backend, rtol=rtol)
     H = _check_square(H)
     if not H.has_canonical_format:
         H = H.copy()
         H.sum_duplicates()
-    usable = available_backends()
-    name = usable[0] if backend == "auto" else backend
-    if name not in _FACTORS:
-        raise ValueError(f"unknown backend {backend!r}; choose 'auto' or one of {sorted(_FACTORS)}")
-    if name not in usable:
-        raise ValueError(f"backend {name!r} is not installed here; available: {usable}")
-    return _FACTORS[name](H)
+    solver.analyze(H)
+    solver.factorize(H)  # the probe solve: no factor of a singular H is handed out
+    return _FACTORS[solver.backend](solver._impl, H)
 
 
 class Supernodes:
@@ -220,10 +218,9 @@ class Supernodes:
         below = np.where(count > 1, indices[np.minimum(indptr[:-1] + 1, indices.size - 1)], -1)
         joins = (below[:-1] == np.arange(1, n)) & (count[:-1] == count[1:] + 1)
         col = np.repeat(np.arange(n), count)
-        candidate = np.r_[False, joins][col]
-        q = np.flatnonzero(candidate)
-        differ = np.bincount(col[q], weights=indices[q] != indices[q - count[col[q]]], minlength=n)
-        joins &= differ[1:] == 0
+        back = np.maximum(np.arange(indices.size) - np.repeat(count, count), 0)
+        differs = np.repeat(np.r_[False, joins], count) & (indices != indices[back])
+        joins[col[differs] - 1] = False
         self.start: IntArray = np.flatnonzero(np.r_[True, ~joins])
         self.width: IntArray = np.diff(np.r_[self.start, n])
         self.owner: IntArray = np.repeat(np.arange(self.start.size), self.width)
@@ -234,6 +231,7 @@ class Supernodes:
         closed = self._index(rows, counts)
         if not closed:
             self._index(*self._completed(rows, first))
+        self.completed = not closed  # whether rows had to be added
         self.panel_start: IntArray = exclusive_cumsum(self.nrows * self.width)
         if closed:  # column k of a supernode holds its rows k, k + 1, …: entry q goes to panel row k + q
             s = self.owner[col]

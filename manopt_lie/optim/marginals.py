@@ -31,8 +31,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import NonFiniteError, ShapeError
-from ..lie import SE2, SE3, SO2, SO3, Rn
+from ..lie import SE2, SE3, SO2, SO3
 from ..lie.base import LieGroup
+from ..lie.rn import RnGroup
 from ..linalg import SelectedInverse, cholesky_factor
 from ..manifolds import Blocks
 from .least_squares_problem import LeastSquaresProblem
@@ -262,7 +263,7 @@ def gtsam_tangent_order(group: type[LieGroup]) -> IntArray:
     vectors need no permutation."""
     if group in _GTSAM_ORDER:
         return _GTSAM_ORDER[group]
-    if isinstance(group, type) and issubclass(group, Rn):
+    if isinstance(group, type) and issubclass(group, RnGroup):
         return np.arange(group.dim)
     raise ValueError(f"no GTSAM tangent ordering known for {getattr(group, '__name__', group)!r}")
 
@@ -329,7 +330,7 @@ def _selected_blocks(factor: Any, offsets: IntArray, dims: IntArray, requests: l
     for r in requests:
         values, found = inverse.entries(*_coordinates(offsets, r))
         out.append(values)
-        missing.append(~found.reshape(r.u.size, -1).all(axis=1))
+        missing.append(~found.all(axis=(1, 2)))
     if any(m.any() for m in missing):
         rest = [r._replace(u=r.u[m], v=r.v[m]) for r, m in zip(requests, missing, strict=True)]
         for values, m, solved in zip(out, missing, _solve_blocks(factor, offsets, dims, rest), strict=True):
