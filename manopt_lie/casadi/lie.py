@@ -487,8 +487,8 @@ _TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {SO2: SymSO2, SO3: SymSO3, S
 
 
 def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
-    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``; also Sim3, SE23,
-    ``Rn(n)`` and ``Bundle(...)`` of these (:mod:`.lie_extended`, twins made once per class).
+    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``; also Sim3, SE23 and
+    ``Bundle(...)`` of these and ``Rn(n)`` (:mod:`.lie_extended`, twins made once per class).
 
     Raises
     ------
@@ -498,14 +498,14 @@ def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
     from . import lie_extended as ext  # imports this module: load it on first use
 
     twin = _TWINS.get(group) or ext.TWINS.get(group) if isinstance(group, type) else None
-    if twin is None and isinstance(group, type) and issubclass(group, RnGroup):
-        twin = ext.sym_rn(group)
     if twin is None and isinstance(group, type) and issubclass(group, BundleGroup):
-        twin = ext.sym_bundle(group, tuple(symbolic(p) for p in group.parts))
+        # Rⁿ parts have a twin inside bundles (ext.sym_rn); alone, Rⁿ needs none (plain CasADi vectors).
+        parts = [ext.sym_rn(p) if issubclass(p, RnGroup) else symbolic(p) for p in group.parts]
+        twin = ext.sym_bundle(group, tuple(parts))
     if twin is None:
         name = getattr(group, "__name__", repr(group))
         raise TypeError(
-            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, SE23, "
-            "Rn(n) and Bundles of these"
+            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, SE23 "
+            "and Bundles of these and Rn(n)"
         )
     return twin
