@@ -105,7 +105,11 @@ def shonan(ra: Any, rotations: np.ndarray, repeat: int) -> dict[str, Any] | None
     initial = gtsam.Values()
     for k, r in enumerate(rotations):
         initial.insert(k, gtsam.Rot3(r) if d == 3 else gtsam.Rot2.fromCosSin(r[0, 0], r[1, 0]))
-    t, (values, min_eig) = median_time(lambda: problem.run(initial, d, 10), repeat)
+    start = time.perf_counter()
+    try:
+        t, (values, min_eig) = median_time(lambda: problem.run(initial, d, 10), repeat)
+    except RuntimeError as err:  # e.g. "Shonan::run did not converge for given max_p"
+        return {"time": time.perf_counter() - start, "fun": float("nan"), "optimal": False, "failed": str(err)}
     at = values.atRot3 if d == 3 else values.atRot2
     estimate = np.stack([at(k).matrix() for k in range(ra.n)])
     cert = certify(ra, (SO3 if d == 3 else SO2).from_matrix(estimate, project=True))
@@ -115,6 +119,8 @@ def shonan(ra: Any, rotations: np.ndarray, repeat: int) -> dict[str, Any] | None
 def _fmt(entry: dict[str, Any] | None) -> str:
     if entry is None:
         return "—"
+    if "failed" in entry:
+        return f"{entry['time']:.3f} s, failed: {entry['failed']}"
     mark = "✓" if entry["optimal"] else "✗"
     return f"{entry['time']:.3f} s {mark} f={entry['fun']:.6g}"
 
@@ -161,7 +167,7 @@ def main() -> None:
             t0 = time.perf_counter()
             c = shonan(ra, np.asarray(start.as_matrix()), args.peer_repeat)
             report["rotations"][f"{name}/{init}"] = {"ours": a, "shonan": c, "wall": time.perf_counter() - t0}
-            eig = "—" if c is None else f"{c['min_eig']:.1e}"
+            eig = "—" if c is None or "min_eig" not in c else f"{c['min_eig']:.1e}"
             print(f"| {name} | {init} | {_fmt(a)} | {_fmt(c)} | {eig} | {_ratio(a, c)} | {a['cert_share']:.0%} |")
     report["load_after"] = _load()
     print(f"\n# load average after: {report['load_after']}")

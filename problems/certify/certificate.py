@@ -170,8 +170,9 @@ def certify_relaxation(
     seed : int, optional
         Seeds the eigensolvers' start vectors.
     eigenvector : bool
-        Whether to estimate ``λ_min`` and its eigenvector when the point is certified (two
-        block inverse iterations); a refused point always gets them unless ``quick``.
+        Whether to estimate ``λ_min`` and its eigenvector when the point is certified (one
+        step of block inverse iteration from the rows of ``Y`` and a random vector, a
+        Ritz value); a refused point always gets them unless ``quick``.
     quick : bool
         Only the factorization test: a refused point gets ``lambda_min = nan``, a zero
         eigenvector and the bound ``S ⪰ −Λ`` (what a stopping test needs).
@@ -194,7 +195,7 @@ def certify_relaxation(
     if rel.factor_certificate(lam, eta):
         lower = -eta
         if eigenvector:
-            theta, v = ritz_min(rel, lam, np.concatenate([yt, rng.standard_normal((nd, 2))], axis=1))
+            theta, v = ritz_min(rel, lam, np.concatenate([yt, rng.standard_normal((nd, 1))], axis=1), steps=1)
     elif quick:
         lower = -max(float(np.max(np.linalg.eigvalsh(lam)[:, -1])), 0.0)  # S ⪰ −Λ
     else:

@@ -14,8 +14,9 @@ the extreme one.
   keeps it away from the others' ``1/(λ + hi) ≤ 1/(hi − lo)``-ish (measured: 10–30 solves).
   SE-Sync's LOBPCG on ``S`` itself, or Lanczos on ``S − λ_max I``, converge in hundreds of
   products for the clustered spectra of pose graphs, each product a solve here.
-- :func:`ritz_min`: two steps of block inverse iteration from the rows of ``Y`` (the near
-  null vectors of ``S`` at a critical point) for the estimate reported with a certificate.
+- :func:`ritz_min`: block inverse iteration from the rows of ``Y`` (the near null vectors
+  of ``S`` at a critical point) for the estimate reported with a certificate (one step:
+  the factorization is what the proof needs, the estimate should not cost another).
 """
 
 from __future__ import annotations
