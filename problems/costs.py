@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from manopt_lie.factors import Gaussian, between_factor
 from manopt_lie.lie.base import LieGroup
 from manopt_lie.manifolds import Power
 from manopt_lie.optim import Factor
@@ -172,21 +173,10 @@ def geodesic_factor(
     loss: RobustLoss | str | None = None,
     name: str = "geodesic",
 ) -> Factor:
-    """Whitened residuals ``Lᵀ r_e`` with right Jacobians ``∂r/∂X_j = Jr⁻¹(r)`` and
-    ``∂r/∂X_i = −Jr⁻¹(r) Ad_{Y⁻¹}``, ``Y = X_i⁻¹X_j`` (one ``Jr⁻¹`` per edge)."""
-    group = type(measurements)
-    z_inv = measurements.inverse()
-
-    def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
-        y = xi.between(xj)
-        r = (z_inv @ y).log()
-        rw = np.einsum("eij,ej->ei", sqrt_information, r)
-        if not jac:
-            return rw
-        j_j = sqrt_information @ group.jr_inv(r)
-        return rw, [-j_j @ y.inverse().adjoint(), j_j]
-
-    return Factor(edges, residual, loss, name)
+    """Whitened residuals ``Lᵀ r_e``, ``r_e = Log(Z_e⁻¹ X_i⁻¹ X_j)``: the library's
+    :func:`~manopt_lie.factors.between_factor` with the square root ``Lᵀ`` of ``Ω = L Lᵀ``
+    (:func:`information_sqrt`) as its noise model."""
+    return between_factor(edges, measurements, Gaussian(sqrt_information), loss=loss, name=name)
 
 
 # ---- the chordal cost ----------------------------------------------------------------------

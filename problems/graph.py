@@ -87,6 +87,13 @@ class Graph(ABC):
         """``"1045 poses, 1172 edges"``, for messages."""
         return f"{self.n} {self.noun}, {self.m} edges"
 
+    def _cost_name(self, cost: str | None) -> str:
+        if cost is None:
+            return self.costs[0]
+        if cost not in self.costs:
+            raise ValueError(f"cost must be one of {self.costs}, got {cost!r}")
+        return cost
+
     @abstractmethod
     def cost(self, x: Any, cost: str | None = None) -> float:
         """The value of ``cost`` (default: the first of :attr:`costs`) at ``x``."""
@@ -249,13 +256,6 @@ class MeasurementGraph(Graph):
         return f"{type(self).__name__}({self.name!r}, {self.group.__name__}, n={self.n}, m={self.m})"
 
     # ---- costs and problems -----------------------------------------------------------
-
-    def _cost_name(self, cost: str | None) -> str:
-        if cost is None:
-            return self.costs[0]
-        if cost not in self.costs:
-            raise ValueError(f"cost must be one of {self.costs}, got {cost!r}")
-        return cost
 
     def chordal_weights(self) -> FloatArray:
         """The diagonal of ``W_e`` per edge, ``(m, c)``: ``√κ`` on the ``d`` rotation columns

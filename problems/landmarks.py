@@ -28,9 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from manopt_lie.errors import ShapeError
+from manopt_lie.factors import Gaussian, between_factor, prior_factor, relative_point_factor
 from manopt_lie.lie.base import LieGroup
 from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power, Values
+from manopt_lie.optim import LeastSquaresProblem
+from manopt_lie.optim.losses import RobustLoss
 
+from . import costs
 from .costs import InformationMatrixError
 from .graph import Graph
 from .pose_graph import PoseGraph
@@ -240,6 +244,70 @@ class LandmarkGraph(Graph):
         """:attr:`poses`: the poses and the relative-pose edges, without the landmarks."""
         return self.poses
 
+    # ---- costs and problems --------------------------------------------------------
+
+    def observation_names(self, observations: Any) -> list[str]:
+        """``"pose 3 → landmark 1007 (line 12)"`` for messages."""
+        index = np.asarray(observations, dtype=np.int64).reshape(-1)
+        pose, point = self.poses.ids[self.observations[index, 0]], self.landmark_ids[self.observations[index, 1]]
+        lines = [""] * len(index) if self.observation_lines is None else [
+            f" (line {line})" for line in self.observation_lines[index]
+        ]  # fmt: skip
+        return [f"pose {a} → landmark {b}{where}" for a, b, where in zip(pose, point, lines, strict=True)]
+
+    def prior_names(self, priors: Any) -> list[str]:
+        index = np.asarray(priors, dtype=np.int64).reshape(-1)
+        lines = [""] * len(index) if self.prior_lines is None else [f" (line {ln})" for ln in self.prior_lines[index]]
+        ids = self.poses.ids[self.prior_poses[index]]
+        return [f"prior on pose {a}{where}" for a, where in zip(ids, lines, strict=True)]
+
+    def problem(
+        self,
+        cost: str | None = None,
+        *,
+        robust: RobustLoss | str | None = None,
+        repair_information: bool = False,
+    ) -> LeastSquaresProblem:
+        """The least-squares problem on :attr:`manifold`: relative poses
+        (:func:`~manopt_lie.factors.between_factor`), observations
+        (:func:`~manopt_lie.factors.relative_point_factor`, with the sensor offsets) and
+        priors (:func:`~manopt_lie.factors.prior_factor`), each whitened by its information
+        (refused, naming the measurement, unless positive definite — or repaired with
+        ``repair_information=True``); ``robust`` applies to every factor. The gauge is fixed
+        as the module doc says."""
+        self._cost_name(cost)
+        if not self.m:
+            raise ValueError(f"{self.name}: the graph has no measurements, so there is nothing to optimize")
+        factors = []
+        graph = self.poses
+        if graph.m:
+            root = costs.information_sqrt(graph.information, _Names(graph.edge_names), repair=repair_information)
+            factors.append(between_factor(graph.edges, graph.measurements, Gaussian(root), loss=robust,
+                                          name="relative poses", blocks="poses"))  # fmt: skip
+        if len(self.observations):
+            root = costs.information_sqrt(self.point_information, _Names(self.observation_names),
+                                          repair=repair_information)  # fmt: skip
+            factors.append(relative_point_factor(self.observations, self.points, Gaussian(root),
+                                                 offset=self.sensor_offsets, loss=robust, name="observations",
+                                                 blocks=("poses", "landmarks")))  # fmt: skip
+        if len(self.prior_poses):
+            root = costs.information_sqrt(self.prior_information, _Names(self.prior_names), repair=repair_information)
+            factors.append(prior_factor(self.prior_poses, self.prior_means, Gaussian(root), loss=robust,
+                                        name="priors", blocks="poses"))  # fmt: skip
+        return LeastSquaresProblem(self.manifold, factors, fixed={"poses": self.gauge})
+
+    @property
+    def gauge(self) -> IntArray:
+        """The poses held fixed: the ``FIX``-ed ones; else, without priors, the anchor; else none."""
+        if self.poses.fixed.size:
+            return self.poses.fixed
+        return np.zeros(0, dtype=np.int64) if len(self.prior_poses) else np.array([self.poses.anchor])
+
+    def cost(self, x: Values, cost: str | None = None) -> float:
+        """``½ Σ rᵀΩr`` over every measurement at ``x`` (the value :meth:`problem` minimizes)."""
+        self.manifold.check_point(x)
+        return self.problem(cost).cost(x)
+
     # ---- initializations -----------------------------------------------------------
 
     def initialize(self, method: str = "chordal", *, seed: int | None = None) -> Values:
@@ -293,3 +361,13 @@ class LandmarkGraph(Graph):
         out = first.copy()
         out[ok] = np.linalg.solve(a[ok], b[ok][:, :, None])[:, :, 0]
         return out
+
+
+class _Names:
+    """Lazy ``names[e]`` from a function of indices, for error messages."""
+
+    def __init__(self, names: Any) -> None:
+        self.names = names
+
+    def __getitem__(self, e: int) -> str:
+        return str(self.names([e])[0])

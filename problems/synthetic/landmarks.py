@@ -1,7 +1,7 @@
 """Synthetic landmark worlds: a robot driving laps among landmarks it sees within its range.
 
 The graph-SLAM example of the seed notes with a known truth: poses along a circle (2-D)
-or a helix (3-D), odometry between consecutive poses, and relative-point observations
+or a helix (3-D), expressed in the first pose's frame (``X₀ = I``), odometry between consecutive poses, and relative-point observations
 ``z = X⁻¹ l + η`` of the landmarks within ``sensor_range`` (the ``max_observations``
 nearest), which close the loops. Noise model as for pose graphs
 (:mod:`manopt_lie.problems.synthetic`): odometry ``Z = (X_i⁻¹X_j) ⊕ ε``,
@@ -14,6 +14,7 @@ within range) with probability ``outlier_rate``; odometry never is.
 from __future__ import annotations
 
 import numbers
+from typing import Any
 
 import numpy as np
 
@@ -40,7 +41,7 @@ __all__ = ["landmark_world"]
 DEFAULT_POINT_NOISE = 0.05  # metres
 
 
-def _trajectory(n: int, d: int, laps: float, radius: float) -> tuple[object, FloatArray]:
+def _trajectory(n: int, d: int, laps: float, radius: float) -> tuple[Any, FloatArray]:
     """Poses along ``laps`` laps of a circle (2-D) or a helix climbing ``radius/2`` (3-D),
     each heading along the path."""
     psi = 2 * np.pi * laps * np.arange(n) / n
@@ -132,6 +133,10 @@ def landmark_world(
     points = np.stack([rho * np.cos(angle), rho * np.sin(angle)], axis=1)
     if d == 3:
         points = np.concatenate([points, rng.uniform(-0.25 * radius, 0.75 * radius, (count, 1))], axis=1)
+    # The world in the first pose's frame: X₀ = I, so the initializations' gauge is the truth's.
+    to_first = truth[0].inverse()
+    truth, points = to_first @ truth, to_first.act(points)
+    positions = truth.as_matrix()[:, :d, d]
 
     odometry = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
     dim = group.dim
