@@ -34,12 +34,14 @@ from typing import Any
 from . import g2o, synthetic
 from .graph import Graph
 from .kinds import KINDS, convert, convertible, get_kind
+from .landmarks import LandmarkGraph
 from .pose_graph import PoseGraph
 from .rotation_averaging import RotationAveraging
 
 GENERATORS: dict[str, str] = {  # the generators of problems.synthetic and the kind each makes
     **dict.fromkeys(("cube", "grid2d", "sphere", "torus", "circle2d"), PoseGraph.kind),
     "rotation_averaging": RotationAveraging.kind,
+    "landmark_world": LandmarkGraph.kind,
 }
 DATA_ENV = "MANOPT_LIE_DATA"
 
@@ -193,7 +195,8 @@ class _Params(dict):  # type: ignore[type-arg]
 
     def __missing__(self, key: str) -> float:
         return {"side": 10, "rows": 20, "cols": 20, "n_rings": 50, "poses_per_ring": 50, "n_laps": 10,
-                "poses_per_lap": 100, "n": 100, "degree": 10}[key]  # fmt: skip
+                "poses_per_lap": 100, "n": 100, "degree": 10, "n_poses": 200, "n_landmarks": 50,
+                "max_observations": 10}[key]  # fmt: skip
 
 
 _SIZE_PARAMS = {
@@ -205,6 +208,9 @@ _SIZE_PARAMS = {
 def _size(generator: str, p: _Params) -> tuple[float, float]:
     """``(n, m)`` of a generator's instance, at most: trajectories have ``m ≤ 3n`` (every
     loop-closure candidate kept), random graphs ``n − 1 + p n(n−1)/2``."""
+    if generator == "landmark_world":
+        poses = float(p["n_poses"])
+        return poses + float(p["n_landmarks"]), poses * (1 + float(p["max_observations"]))
     n = math.prod(float(p[k]) for k in _SIZE_PARAMS[generator])
     if generator != "rotation_averaging":
         return n, 3 * n
@@ -245,6 +251,8 @@ SUITES: dict[str, tuple[Entry, ...]] = {
         Entry("cube-8", generator="cube", params={"side": 8, "seed": 0}),
         Entry("sphere-20x25", generator="sphere", params={"n_rings": 20, "poses_per_ring": 25, "seed": 0}),
         _rotations(500, 10),
+        Entry("landmarks2d-200", LandmarkGraph.kind, generator="landmark_world",
+              params={"n_poses": 200, "n_landmarks": 50, "seed": 0}),
     ),
     "full": (
         *DATASETS,
@@ -252,6 +260,10 @@ SUITES: dict[str, tuple[Entry, ...]] = {
         Entry("cube-15", generator="cube", params={"side": 15, "seed": 0}),
         Entry("torus-20x100", generator="torus", params={"n_laps": 20, "poses_per_lap": 100, "seed": 0}),
         _rotations(2000, 10),
+        Entry("landmarks2d-2000", LandmarkGraph.kind, generator="landmark_world",
+              params={"n_poses": 2000, "n_landmarks": 400, "laps": 4, "radius": 30, "seed": 0}),
+        Entry("landmarks3d-1000", LandmarkGraph.kind, generator="landmark_world",
+              params={"n_poses": 1000, "n_landmarks": 200, "d": 3, "laps": 3, "radius": 20, "seed": 0}),
     ),
 }
 

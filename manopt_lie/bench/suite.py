@@ -23,12 +23,17 @@ from typing import Any
 
 from manopt_lie.optim import OPTIMIZERS, Status, StoppingCriteria, get_optimizer
 from manopt_lie.problems.catalogue import CatalogueError, Entry, Loaded
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 from . import peers as peer_adapters
 from .record import Run, finite
 from .timing import median_time
 
 REFERENCE = "ipopt"
+REFERENCE_KINDS = (PoseGraph.kind, RotationAveraging.kind)
+"""The kinds the IPOPT reference solves (:data:`manopt_lie.problems.reference.KINDS`, not
+imported here: CasADi's NLP machinery loads only when a reference run is asked for)."""
 
 
 @dataclass(frozen=True)
@@ -84,7 +89,9 @@ def plan(
     for entry in entries:
         for cost in entry.costs or ():
             solvers = [*optimizers, *(p for p in peers if peer_adapters.applies(p, entry.problem, cost))]
-            tasks += [Task(entry, cost, s) for s in solvers + ([REFERENCE] if reference else [])]
+            if reference and entry.problem in REFERENCE_KINDS:
+                solvers.append(REFERENCE)
+            tasks += [Task(entry, cost, s) for s in solvers]
     return tasks
 
 

@@ -68,15 +68,19 @@ from manopt_lie.optim.losses import RobustLoss, Trivial, parse_loss
 
 from .. import costs
 from ..graph import MeasurementGraph
+from ..pose_graph import PoseGraph
+from ..rotation_averaging import RotationAveraging
 from .rotations import _cross, _rho, _Rotations, rotations
 
-__all__ = ["PARAMETRIZATIONS", "ReferenceNLP", "ReferenceResult", "build_nlp", "reference_solve"]
+__all__ = ["KINDS", "PARAMETRIZATIONS", "ReferenceNLP", "ReferenceResult", "build_nlp", "reference_solve"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Parametrization = Literal["auto", "quaternion", "matrix"]
 PARAMETRIZATIONS = ("auto", "quaternion", "matrix")
 COSTS = ("chordal", "geodesic")
+KINDS = (PoseGraph.kind, RotationAveraging.kind)
+"""The problem kinds the reference solves (the measurement graphs of one group)."""
 
 DEFAULT_IPOPT_OPTIONS: dict[str, Any] = {
     "hessian_approximation": "exact",
