@@ -24,7 +24,7 @@ The blocks are read from the sparse Cholesky factor of ``H``, never from a dense
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -65,14 +65,16 @@ class _Names:
         self.blocked = isinstance(m, Blocks)
 
     def block(self, name: str | None) -> int:
-        if name is None and not self.blocked:
-            return 0
+        if not self.blocked:
+            if name is None:
+                return 0
+            raise KeyError(f"no block named {name!r}: variables of a power manifold are named by index only")
         if name not in self.names:
             raise KeyError(f"no block named {name!r}; blocks: {', '.join(self.names)}")
         return self.names.index(name)
 
-    def block_of(self, g: IntArray) -> IntArray:
-        return np.searchsorted(self.starts, g, side="right") - 1
+    def block_of(self, g: ArrayLike) -> IntArray:
+        return np.searchsorted(self.starts, g, side="right") - 1  # type: ignore[no-any-return]
 
     def check(self, g: ArrayLike, what: str) -> IntArray:
         out = np.asarray(g)
@@ -106,7 +108,7 @@ class _Names:
         if isinstance(spec, Mapping):
             parts = [self.starts[self.block(name)] + self.local(name, idx) for name, idx in spec.items()]
             return np.unique(np.concatenate([np.zeros(0, np.int64), *parts]))
-        if isinstance(spec, Sequence) and spec and isinstance(spec[0], tuple):
+        if isinstance(spec, Sequence) and any(isinstance(k, tuple) for k in spec):
             return np.unique([self.key(k) for k in spec]).astype(np.int64)
         return np.unique(self.check(np.reshape(spec, -1), "variables"))
 
@@ -126,12 +128,16 @@ class _Names:
                 parts.append(np.c_[self.starts[self.block(bu)] + self.local(bu, loc[:, 0]),
                                    self.starts[self.block(bv)] + self.local(bv, loc[:, 1])])  # fmt: skip
             return np.concatenate([np.zeros((0, 2), np.int64), *parts])
-        if isinstance(spec, Sequence) and spec and isinstance(spec[0], tuple):
+        if isinstance(spec, Sequence) and any(
+            isinstance(k, tuple) and any(isinstance(a, tuple) for a in k) for k in spec
+        ):
             return np.array([[self.key(u, "pairs"), self.key(v, "pairs")] for u, v in spec], dtype=np.int64)
-        out = self.check(spec, "pairs").reshape(-1, 2) if np.size(spec) else np.zeros((0, 2), np.int64)
-        if np.ndim(spec) not in (1, 2) or (np.ndim(spec) == 2 and np.shape(spec)[1] != 2):
-            raise ShapeError(f"pairs: expected (p, 2) global indices, got shape {np.shape(spec)}")
-        return out
+        if not np.size(spec):
+            return np.zeros((0, 2), np.int64)
+        shape = np.shape(spec)
+        if shape != (2,) and (len(shape) != 2 or shape[1] != 2):
+            raise ShapeError(f"pairs: expected (p, 2) global indices, got shape {shape}")
+        return self.check(spec, "pairs").reshape(-1, 2)
 
 
 class MarginalCovariances:
@@ -178,6 +184,22 @@ class MarginalCovariances:
 
     def __len__(self) -> int:
         return int(self.variables.size)
+
+    def __iter__(self) -> Iterator[Key]:
+        """The requested variables' keys: global indices, or ``(block, i)`` on ``Blocks``."""
+        if not self._names.blocked:
+            yield from self.variables.tolist()
+            return
+        for name, (local, _) in self._stacked.items():
+            yield from ((name, i) for i in local.tolist())
+
+    def items(self) -> Iterator[tuple[Key, FloatArray]]:
+        """``(key, block)`` for every requested variable (:meth:`stacked` is the fast way)."""
+        if not self._names.blocked:
+            yield from zip(self.variables.tolist(), self._stacked[""][1], strict=True)
+            return
+        for name, (local, blocks) in self._stacked.items():
+            yield from (((name, i), b) for i, b in zip(local.tolist(), blocks, strict=True))
 
     def __contains__(self, key: Any) -> bool:
         g = self._names.key(key)
@@ -240,7 +262,7 @@ class MarginalCovariances:
 
 def to_left_frame(points: Any, cov: ArrayLike, points_v: Any = None) -> FloatArray:
     """Right-tangent covariances ``(k, d, d)`` in the left (global) frame: ``Ad_X Σ Ad_Xᵀ``
-    (Solà eq. 55, ``τ_left = Ad_X τ_right``), batched over ``points`` (group elements of
+    (``X·Exp(τ) = Exp(Ad_X τ)·X``), batched over ``points`` (group elements of
     batch ``(k,)``; arrays of a vector space are returned unchanged). With ``points_v`` the
     cross blocks of pairs: ``Ad_{X_u} Σ_uv Ad_{X_v}ᵀ``."""
     c = np.asarray(cov, dtype=np.float64)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from manopt_lie import SE2, SE3
+from manopt_lie.errors import ShapeError
 from manopt_lie.lie.uncertainty import right_to_left_covariance
 from manopt_lie.linalg import SingularSystemError
 from manopt_lie.optim import (
@@ -115,8 +116,11 @@ def test_poses_and_landmarks_against_the_dense_inverse():
             assert np.array_equal(cov.cross(("landmarks", point), ("poses", pose)), c.T)
     every = marginal_covariances(problem, x, "landmarks")
     assert every.indices("landmarks").tolist() == list(range(6)) and every.indices("poses").size == 0
-    by_key = marginal_covariances(problem, x, [("landmarks", 1), ("poses", 2)])
-    assert by_key.variables.tolist() == [2, 11]
+    by_key = marginal_covariances(problem, x, [("landmarks", 1), 2], pairs=[(2, ("landmarks", 1))])
+    assert by_key.variables.tolist() == [2, 11] and by_key.pairs.tolist() == [[2, 11]]
+    assert list(by_key) == [("poses", 2), ("landmarks", 1)]
+    assert all(np.array_equal(b, by_key[k]) for k, b in by_key.items())
+    assert relative(by_key.joint(2, 11), Z[np.ix_(*[np.r_[6:9, 32:34]] * 2)]) < 1e-10
 
 
 def test_robust_losses_use_the_irls_weighted_matrix():
@@ -160,9 +164,14 @@ def test_errors(pose_graph):
         marginal_covariances(problem, x, [graph.n])
     with pytest.raises(ValueError, match="unknown backend"):
         marginal_covariances(problem, x, backend="mumps")
-    with pytest.raises(KeyError, match="no block named"):
+    with pytest.raises(KeyError, match="no block named 'landmarks'"):
         marginal_covariances(problem, x, "landmarks")
+    with pytest.raises(ShapeError, match="pairs"):
+        marginal_covariances(problem, x, pairs=[1, 2, 3])
+    with pytest.raises(KeyError, match="by index only"):
+        marginal_covariances(problem, x, [("poses", 1)])  # no blocks on a power manifold
     cov = marginal_covariances(problem, x, [1, 2])
+    assert list(cov) == [1, 2]
     with pytest.raises(KeyError, match="not requested"):
         cov[3]
     with pytest.raises(KeyError, match="not requested"):
