@@ -86,30 +86,27 @@ def numerical_jacobian(
 
     Group-valued inputs are perturbed by ``x ⊕ (±h e_k)`` (``frame="left"``:
     ``(±h e_k) ⊕ x``) and group-valued outputs compared with ``⊖`` of the same
-    frame at ``f(x)``; array inputs and outputs use ``+`` and ``−``.
+    frame at ``f(x)``; array inputs and outputs use ``+`` and ``−``. All ``2·dim``
+    perturbations go through ``f`` at once, on a new leading batch axis (``f`` must
+    broadcast, as every group operation does).
     """
     if frame not in FRAMES:
         raise ValueError(f"frame must be one of {FRAMES}, got {frame!r}")
     x = args[wrt]
     y0 = f(*args)
-    dim = x.dim if isinstance(x, LieGroup) else np.shape(x)[-1]
-    cols = []
-    for k in range(dim):
-        step = np.zeros(dim)
-        step[k] = h
-        outs = []
-        for s in (step, -step):
-            a = list(args)
-            if isinstance(x, LieGroup):
-                a[wrt] = x.rplus(s) if frame == "right" else x.lplus(s)
-            else:
-                a[wrt] = x + s
-            y = f(*a)
-            if isinstance(y, LieGroup):
-                y = y.rminus(y0) if frame == "right" else y.lminus(y0)
-            outs.append(y)
-        cols.append((outs[0] - outs[1]) / (2 * h))
-    return np.stack(cols, axis=-1)
+    group = isinstance(x, LieGroup)
+    dim = x.dim if group else np.shape(x)[-1]
+    batch_ndim = len(x.batch_shape) if group else np.ndim(x) - 1
+    steps = (h * np.concatenate([np.eye(dim), -np.eye(dim)])).reshape((2 * dim,) + (1,) * batch_ndim + (dim,))
+    a = list(args)
+    if group:
+        a[wrt] = x.rplus(steps) if frame == "right" else x.lplus(steps)
+    else:
+        a[wrt] = x + steps
+    y = f(*a)
+    if isinstance(y, LieGroup):
+        y = y.rminus(y0) if frame == "right" else y.lminus(y0)
+    return np.moveaxis((y[:dim] - y[dim:]) / (2 * h), 0, -1)
 
 
 def assert_jacobian(j: np.ndarray, j_num: np.ndarray, tol: float = 1e-6) -> None:

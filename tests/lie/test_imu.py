@@ -40,7 +40,7 @@ def test_time_shift_is_an_automorphism_with_tangent_map_A(rng):
 def test_noise_jacobian_against_finite_differences(rng):
     w, a = rng.standard_normal(3), rng.standard_normal(3)
     _, g = _increment(w, a)
-    fd = numerical_jacobian(lambda n: _increment(w + n[:3], a + n[3:])[0], [np.zeros(6)], 0)
+    fd = numerical_jacobian(lambda n: _increment(w + n[..., :3], a + n[..., 3:])[0], [np.zeros(6)], 0)
     np.testing.assert_allclose(g, fd, atol=1e-9)
 
 
