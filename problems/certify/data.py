@@ -212,7 +212,7 @@ class Relaxation:
             m[:, d, d] = 1.0
         else:
             m = rotations
-        x = graph.group.from_matrix(m, project=True)
+        x = graph.group.from_matrix(m)  # validated (rotations within 1e-6 or an error) and polished
         anchor = graph.anchor
         frame = x[anchor].inverse() if graph.estimates is None else graph.estimates[anchor] @ x[anchor].inverse()
         return frame @ x  # type: ignore[no-any-return]

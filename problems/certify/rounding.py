@@ -40,6 +40,9 @@ def round_solution(y: FloatArray) -> FloatArray:
     n, p, d = y.shape
     if p == d:  # Y Yᵀ = nI: any basis is a leading one, and the identity keeps Y as it is
         blocks = np.array(y)
+        orthonormal = np.abs(np.swapaxes(blocks, 1, 2) @ blocks - np.eye(d)).max() <= 1e-12
+        if orthonormal and np.all(np.linalg.det(blocks) > 0):
+            return blocks  # already rotations: no SVD
     else:
         yt = stacked(y)
         _, u = np.linalg.eigh(yt.T @ yt)  # ascending
