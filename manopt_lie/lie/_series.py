@@ -53,6 +53,7 @@ __all__ = [
     "half_cot",
     "sinc_half",
     "atan_ratio",
+    "sim3_moments",
     "sim3_coefficients",
     "sim3_inverse_coefficients",
 ]
@@ -275,6 +276,26 @@ COEFFICIENTS: tuple[Coefficient, ...] = (
 SIM3_ORIGIN2 = 1e-12
 
 
+def sim3_moments(sigma: Any, backend: Backend = NUMPY) -> tuple[Any, Any, Any, Any]:
+    """``(e^σ, μ₀, μ₁, μ₂)`` with ``μₖ = ∫₀¹ sᵏ e^{sσ} ds`` (see :func:`sim3_coefficients`)."""
+    y = 0.5 * sigma
+    y2 = y * y
+    m0, m1, m2 = (evaluate(c, y2, y, backend) for c in (EMOMENT0, EMOMENT1, EMOMENT2))
+    e = backend.exp(y)
+    es = e * e
+    mu0 = e * m0
+    mu1 = e * (0.5 * m0 + y * m1)
+    mu2 = e * (0.25 * m0 + y * m1 + m2)
+    # For σ < −1 the shifted form cancels (its terms are ~1/|σ|, μ₂ ~ 2/|σ|³): integrate by parts.
+    neg = sigma < -1.0
+    sd = backend.where(neg, sigma, -1.0)
+    ed = backend.exp(sd)
+    mu1_d = (1.0 + ed * (sd - 1.0)) / (sd * sd)
+    mu1 = backend.where(neg, mu1_d, mu1)
+    mu2 = backend.where(neg, (ed - 2.0 * mu1_d) / sd, mu2)
+    return es, mu0, mu1, mu2
+
+
 def sim3_coefficients(sigma: Any, t: Any, backend: Backend = NUMPY) -> tuple[Any, Any, Any]:
     """``(a, b, c)`` of ``W(σ, θ) = ∫₀¹ e^{sσ} Exp(sθ) ds = a I + b θ^ + c θ^²`` (Sim(3) ``Exp``), ``t = |θ|²``.
 
@@ -292,21 +313,7 @@ def sim3_coefficients(sigma: Any, t: Any, backend: Backend = NUMPY) -> tuple[Any
     coefficients. Below :data:`SIM3_ORIGIN2` the Taylor polynomials
     ``b = ½ + σ/3 + σ²/8 − t/24``, ``c = 1/6 + σ/8 + σ²/20 − t/120``.
     """
-    y = 0.5 * sigma
-    y2 = y * y
-    m0, m1, m2 = (evaluate(c, y2, y, backend) for c in (EMOMENT0, EMOMENT1, EMOMENT2))
-    e = backend.exp(y)
-    es = e * e
-    mu0 = e * m0
-    mu1 = e * (0.5 * m0 + y * m1)
-    mu2 = e * (0.25 * m0 + y * m1 + m2)
-    # For σ < −1 the shifted form cancels (its terms are ~1/|σ|, μ₂ ~ 2/|σ|³): integrate by parts.
-    neg = sigma < -1.0
-    sd = backend.where(neg, sigma, -1.0)
-    ed = backend.exp(sd)
-    mu1_d = (1.0 + ed * (sd - 1.0)) / (sd * sd)
-    mu1 = backend.where(neg, mu1_d, mu1)
-    mu2 = backend.where(neg, (ed - 2.0 * mu1_d) / sd, mu2)
+    es, mu0, mu1, mu2 = sim3_moments(sigma, backend)
     cc, s3, q2 = (evaluate(c, t, None, backend) for c in (COSC, SINC3, Q_COEF2))
     s2 = sigma * sigma
     r2 = s2 + t

@@ -51,13 +51,58 @@ def scale(m: FloatArray) -> FloatArray:
     return big * np.sqrt(_sq(col / safe[..., None]))
 
 
+def _unit_coefficients(theta: FloatArray, sigma: FloatArray) -> tuple[FloatArray, ...]:
+    """``(u, a, bθ, cθ²)`` for ``|θ| ≥ _so3.HUGE``, so that ``W = a I + bθ [u]× + cθ² [u]×²``.
+
+    With ``h = θ/2``, ``1/θ = ½/h``, ``r = t/(σ² + t) = 1/(1 + (σ/θ)²)``, ``t cosc θ = 2 sin²h``,
+    ``t sinc3 θ = 1 − sin h cos h/h``, ``t q_coef2 θ = ½ − (sin h/h)²/2``:
+    ``bθ = (σ²μ₁ + e^σ(2 sin²h − σ t sinc3)) r/θ``, ``cθ² = (σ²μ₂/2 + e^σ(t sinc3 − σ t q_coef2)) r``.
+    """
+    u, h, s, c = _so3.polar(theta)
+    es, mu0, mu1, mu2 = _series.sim3_moments(sigma)
+    inv = 0.5 / h
+    r = 1.0 / (1.0 + (sigma * inv) ** 2)
+    ts3 = 1.0 - s * c / h
+    tq2 = 0.5 - 0.5 * (s / h) ** 2
+    b = (sigma * sigma * mu1 + es * (2.0 * s * s - sigma * ts3)) * inv * r
+    cc = (0.5 * sigma * sigma * mu2 + es * (ts3 - sigma * tq2)) * r
+    return u, mu0, b, cc
+
+
+def _w_apply_huge(theta: FloatArray, v: FloatArray, sigma1: FloatArray) -> FloatArray:
+    u, a, b, c = _unit_coefficients(theta, sigma1[..., 0])
+    uv = np.cross(u, v)
+    return a[..., None] * v + b[..., None] * uv + c[..., None] * np.cross(u, uv)
+
+
+@_so3.scale_safe(_w_apply_huge)
+def w_apply(theta: FloatArray, v: FloatArray, sigma1: FloatArray) -> FloatArray:
+    """``W(σ, θ) v = a v + b θ×v + c θ×(θ×v)``, ``σ`` as ``(..., 1)``; huge angles in unit form."""
+    a, b, c = _series.sim3_coefficients(sigma1[..., 0], _sq(theta))
+    wv = np.cross(theta, v)
+    return a[..., None] * v + b[..., None] * wv + c[..., None] * np.cross(theta, wv)
+
+
 def exp(tau: FloatArray) -> FloatArray:
     """``[[e^σ Exp(θ), a ρ + b θ×ρ + c θ×(θ×ρ)], [0, 1]]``."""
     rho, theta, sigma = tau[..., :3], tau[..., 3:6], tau[..., 6]
-    a, b, c = _series.sim3_coefficients(sigma, _sq(theta))
-    wv = np.cross(theta, rho)
-    trans = a[..., None] * rho + b[..., None] * wv + c[..., None] * np.cross(theta, wv)
-    return _matrix.assemble(_so3.exp(theta) * _scalar(np.exp(sigma)), trans)
+    return _matrix.assemble(_so3.exp(theta) * _scalar(np.exp(sigma)), w_apply(theta, rho, tau[..., 6:]))
+
+
+def _w_inv_matrix_huge(theta: FloatArray, sigma1: FloatArray) -> FloatArray:
+    u, a, b, c = _unit_coefficients(theta, sigma1[..., 0])
+    al, be, ga = _series.sim3_inverse_coefficients(a, b, c, 1.0)
+    k = _so3.hat(u)
+    return _scalar(al) * np.eye(3) + _scalar(be) * k + _scalar(ga) * (k @ k)
+
+
+@_so3.scale_safe(_w_inv_matrix_huge)
+def w_inv_matrix(theta: FloatArray, sigma1: FloatArray) -> FloatArray:
+    """``W(σ, θ)⁻¹ = α I + β θ^ + γ θ^²`` as a matrix; huge angles in unit form."""
+    t = _sq(theta)
+    al, be, ga = _series.sim3_inverse_coefficients(*_series.sim3_coefficients(sigma1[..., 0], t), t)
+    k2 = theta[..., :, None] * theta[..., None, :] - _scalar(t) * np.eye(3)
+    return _scalar(al) * np.eye(3) + _scalar(be) * _so3.hat(theta) + _scalar(ga) * k2
 
 
 def w_inv_apply(sigma: FloatArray, theta: FloatArray, v: FloatArray) -> FloatArray:
@@ -116,19 +161,24 @@ def jr(tau: FloatArray) -> FloatArray:
     ``Exp(2τ) = Exp(τ)²`` gives ``Jr(2τ) = ½ (I + Ad_{Exp τ}⁻¹) Jr(τ)``. With ``K`` the
     smallest integer such that ``‖ad_τ‖_F / 2ᴷ ≤ 0.25`` (one ``K`` for the batch), the
     13-term series at ``τ/2ᴷ`` (remainder below 1e-19) is doubled back ``K`` times —
-    ``K`` batched compositions, no loop over elements (``K ≈ 5`` for ``|τ| ≈ 3``).
+    ``K`` batched compositions, no loop over elements (``K ≈ 5`` for ``|τ| ≈ 3``). ``Jr`` is
+    linear in ``ρ`` (only its top-right blocks depend on it), so ``ρ`` is scaled to
+    ``|ρ|∞ ≤ 1`` first and those blocks scaled back: ``K`` depends on ``θ`` and ``σ`` only.
     """
-    a = ad(tau)
-    norm = np.sqrt(np.einsum("...ij,...ij->...", a, a)).max(initial=0.0)
-    k = max(0, int(np.ceil(np.log2(norm / DOUBLING_NORM)))) if norm > DOUBLING_NORM else 0
-    x = -a / 2.0**k
+    m = np.maximum(np.abs(tau[..., :3]).max(axis=-1), 1.0)
+    unit = np.concatenate([tau[..., :3] / m[..., None], tau[..., 3:]], axis=-1)
+    a = ad(unit)
+    big = np.abs(a).max(initial=0.0)  # 7·big ≥ ‖ad‖_F (and log₂ of it never overflows)
+    k = int(np.ceil(np.log2(big) + np.log2(7.0 / DOUBLING_NORM))) if big > DOUBLING_NORM / 7.0 else 0
+    x = np.ldexp(-a, -k)
     eye = np.eye(7)
     j = _JR_SERIES[-1] * x + _JR_SERIES[-2] * eye
     for c in _JR_SERIES[-3::-1]:
         j = j @ x + c * eye
-    half = tau / 2.0**k
+    half = np.ldexp(unit, -k)
     for level in range(k):
-        j = 0.5 * (j + adjoint(inverse(exp(half * 2.0**level))) @ j)
+        j = 0.5 * (j + adjoint(inverse(exp(np.ldexp(half, level)))) @ j)
+    j[..., :3, 3:] *= m[..., None, None]
     return j
 
 
@@ -137,12 +187,8 @@ def jr_inv(tau: FloatArray) -> FloatArray:
     ``[[D₁⁻¹, −D₁⁻¹ X D₂⁻¹, −D₁⁻¹ y], [0, D₂⁻¹, 0], [0, 0, 1]]`` with the closed forms
     ``D₁⁻¹ = W(−σ, −θ)⁻¹`` and ``D₂⁻¹ = Jr_SO3(θ)⁻¹``."""
     j = jr(tau)
-    theta, sigma = tau[..., 3:6], tau[..., 6]
-    t = _sq(theta)
-    al, be, ga = _series.sim3_inverse_coefficients(*_series.sim3_coefficients(-sigma, t), t)
-    k = _so3.hat(-theta)
-    k2 = theta[..., :, None] * theta[..., None, :] - _scalar(t) * np.eye(3)
-    d1i = _scalar(al) * np.eye(3) + _scalar(be) * k + _scalar(ga) * k2
+    theta = tau[..., 3:6]
+    d1i = w_inv_matrix(-theta, -tau[..., 6:])
     d2i = _so3.jr_inv(theta)
     out = np.zeros_like(j)
     out[..., :3, :3] = d1i

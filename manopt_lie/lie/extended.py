@@ -57,7 +57,14 @@ class Sim3(LieGroup):
                 f"tau: log-scale σ = {sigma[bad].flat[0]:g} at batch index {_first(bad)} is outside "
                 f"[-{_sim3.SIGMA_MAX:g}, {_sim3.SIGMA_MAX:g}]: the scale e^σ is not representable"
             )
-        return _sim3.exp(tau)
+        with np.errstate(over="ignore"):
+            out = _sim3.exp(tau)
+        bad = ~np.isfinite(out).all(axis=(-2, -1))
+        if bad.any():
+            raise RangeError(
+                f"tau: the translation W(σ, θ)ρ at batch index {_first(bad)} overflows float64 (|ρ|·e^σ too large)"
+            )
+        return out
 
     @classmethod
     def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
