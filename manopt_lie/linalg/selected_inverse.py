@@ -56,6 +56,9 @@ class CholeskyFactor:
     perm : int array, shape (n,)
     backend : str
         The backend that factorized ``H``.
+    exact : bool
+        Whether ``L`` stores its whole symbolic pattern, structural zeros included
+        (CHOLMOD, QDLDL; see :class:`Supernodes`).
     """
 
     def __init__(
@@ -64,8 +67,10 @@ class CholeskyFactor:
         backend: str,
         lower: Callable[[], sp.csc_matrix],
         solve: Callable[[FloatArray], FloatArray] | None = None,
+        *,
+        exact: bool = False,
     ) -> None:
-        self.perm, self.backend = perm, backend
+        self.perm, self.backend, self.exact = perm, backend, exact
         self._lower, self._solve = lower, solve
         self._L: sp.csc_matrix | None = None
 
@@ -117,7 +122,7 @@ def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
         arrays = (np.asarray(a).reshape(-1) for a in (values, rowind, colptr))
         return sp.csc_matrix(tuple(arrays), shape=(n, n))
 
-    return CholeskyFactor(perm, "cholmod", lower, solve)
+    return CholeskyFactor(perm, "cholmod", lower, solve, exact=True)
 
 
 def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = True) -> sp.csc_matrix:
@@ -145,7 +150,7 @@ def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = Tru
 def _qdldl_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     strict, d, p = impl._solver.factors()  # H = P (I + L) D (I + L)ᵀ Pᵀ with P[p, arange] = 1
     L = _scaled(strict, np.asarray(d, dtype=np.float64), "QDLDL", diagonal=False)
-    return CholeskyFactor(np.asarray(p, dtype=np.intp), "qdldl", lambda: L)
+    return CholeskyFactor(np.asarray(p, dtype=np.intp), "qdldl", lambda: L, exact=True)
 
 
 def _superlu_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
@@ -204,23 +209,32 @@ class Supernodes:
     were dropped (SciPy's copy of SuperLU's ``L``) is not one; its rows are then completed
     by the symbolic factorization ``rows_p ← rows_p ∪ R_s`` (a loop over supernodes in
     elimination order), which restores the structural zeros.
+
+    Parameters
+    ----------
+    L : scipy.sparse.csc_matrix
+        Lower triangular, sorted, the diagonal stored first in every column.
+    exact : bool
+        Whether ``L`` has an exact (or CHOLMOD's relaxed) symbolic pattern, as CHOLMOD's and
+        QDLDL's factors have: then two columns with nested structure and equal counts have
+        equal rows, and that is not checked entry by entry (one pass over ``L`` less).
     """
 
-    def __init__(self, L: sp.csc_matrix) -> None:
+    def __init__(self, L: sp.csc_matrix, *, exact: bool = False) -> None:
         n, indptr, indices = L.shape[0], L.indptr.astype(np.intp), L.indices.astype(np.intp)
         count = np.diff(indptr)
         if (count < 1).any() or (indices[indptr[:-1]] != np.arange(n)).any():
             raise ValueError("L must store its diagonal first in every column")
         self.n = n
         # Column c + 1 continues c's supernode if it is c's first row below the diagonal
-        # and the rows below c + 1 are c's: compare each entry of c + 1 with the entry of c
-        # count[c + 1] places before it.
+        # with one entry less; unless the pattern is exact, the rows below c + 1 must be c's
+        # too: each entry of c + 1 is compared with the entry count[c + 1] places before it.
         below = np.where(count > 1, indices[np.minimum(indptr[:-1] + 1, indices.size - 1)], -1)
         joins = (below[:-1] == np.arange(1, n)) & (count[:-1] == count[1:] + 1)
-        col = np.repeat(np.arange(n), count)
-        back = np.maximum(np.arange(indices.size) - np.repeat(count, count), 0)
-        differs = np.repeat(np.r_[False, joins], count) & (indices != indices[back])
-        joins[col[differs] - 1] = False
+        if not exact:
+            back = np.maximum(np.arange(indices.size) - np.repeat(count, count), 0)
+            differs = np.repeat(np.r_[False, joins], count) & (indices != indices[back])
+            joins[np.searchsorted(indptr, np.flatnonzero(differs), side="right") - 2] = False
         self.start: IntArray = np.flatnonzero(np.r_[True, ~joins])
         self.width: IntArray = np.diff(np.r_[self.start, n])
         self.owner: IntArray = np.repeat(np.arange(self.start.size), self.width)
@@ -233,12 +247,15 @@ class Supernodes:
             self._index(*self._completed(rows, first))
         self.completed = not closed  # whether rows had to be added
         self.panel_start: IntArray = exclusive_cumsum(self.nrows * self.width)
-        if closed:  # column k of a supernode holds its rows k, k + 1, …: entry q goes to panel row k + q
-            s = self.owner[col]
-            k = col - self.start[s]
-            self._scatter = self.panel_start[s] + (k + np.arange(indices.size) - indptr[col]) * self.width[s] + k
+        if closed:
+            # Column k of a supernode holds its rows k, k + 1, …: its entry q goes to panel
+            # row k + q, at panel_start + k·(w + 1) + q·w (per-column constants, repeated).
+            k = np.arange(n) - self.start[self.owner]
+            w = self.width[self.owner]
+            q = np.arange(indices.size) - np.repeat(indptr[:-1], count)
+            self._scatter = np.repeat(self.panel_start[self.owner] + k * (w + 1), count) + q * np.repeat(w, count)
         else:
-            self._scatter, found = self.locate(indices, col)
+            self._scatter, found = self.locate(indices, np.repeat(np.arange(n), count))
             assert found.all(), "completed rows hold every entry of L"
 
     def _index(self, rows: IntArray, counts: IntArray) -> bool:
@@ -302,13 +319,16 @@ class Supernodes:
         return mask
 
 
-def _diagonal_inverses(nodes: Supernodes, panels: FloatArray, todo: IntArray) -> dict[int, FloatArray]:
-    """``L_JJ⁻¹`` of the supernodes ``todo``, batched over supernodes of equal width."""
+def _diagonal_inverses(nodes: Supernodes, panels: FloatArray, todo: IntArray, z: FloatArray) -> dict[int, FloatArray]:
+    """``L_JJ⁻¹`` of the supernodes ``todo``, batched over supernodes of equal width, and
+    ``L_JJ⁻ᵀ L_JJ⁻¹`` written into the diagonal blocks of ``z``."""
     out: dict[int, FloatArray] = {}
-    for w in np.unique(nodes.width[todo]):  # a few distinct widths
+    for w in np.unique(nodes.width[todo]).tolist():  # a few distinct widths
         group = todo[nodes.width[todo] == w]
-        blocks = panels[nodes.panel_start[group][:, None] + np.arange(w * w)].reshape(-1, w, w)
-        out.update(zip(group.tolist(), np.linalg.inv(blocks), strict=True))
+        at = nodes.panel_start[group][:, None] + np.arange(w * w)  # the first w rows of each panel
+        inverse = np.linalg.inv(panels[at].reshape(-1, w, w))
+        z[at] = (np.swapaxes(inverse, 1, 2) @ inverse).reshape(-1, w * w)
+        out.update(zip(group.tolist(), inverse, strict=True))
     return out
 
 
@@ -331,7 +351,7 @@ class SelectedInverse:
 
     def __init__(self, factor: CholeskyFactor, columns: ArrayLike | None = None) -> None:
         self.factor = factor
-        self.nodes = nodes = Supernodes(factor.L)
+        self.nodes = nodes = Supernodes(factor.L, exact=factor.exact)
         self._iperm = np.empty(factor.n, dtype=np.intp)
         self._iperm[factor.perm] = np.arange(factor.n)
         if columns is None:
@@ -344,32 +364,32 @@ class SelectedInverse:
     def _recursion(self, panels: FloatArray) -> FloatArray:
         nodes = self.nodes
         todo = np.flatnonzero(self.computed)
-        inverses = _diagonal_inverses(nodes, panels, todo)
-        parent, width, nrows, start, rel, rel_start = (
-            nodes.parent, nodes.width, nodes.nrows, nodes.panel_start, nodes.rel, nodes.rel_start
-        )  # fmt: skip
-        children = np.bincount(parent[todo][parent[todo] >= 0], minlength=parent.size)
         z = np.zeros_like(panels)
+        inverses = _diagonal_inverses(nodes, panels, todo, z)
+        rel = nodes.rel
+        children = np.bincount(nodes.parent[todo][nodes.parent[todo] >= 0], minlength=nodes.parent.size)
+        # Python ints for the loop (numpy scalars cost more to index with).
+        parent, width, nrows, start, rel_start, pending = (
+            a.tolist() for a in (nodes.parent, nodes.width, nodes.nrows, nodes.panel_start, nodes.rel_start, children)
+        )  # fmt: skip
         fronts: dict[int, FloatArray] = {}  # Z[rows_s, rows_s] of supernodes whose children are pending
-        for s in todo[::-1].tolist():  # the recursion: parents before children
-            w, nr = int(width[s]), int(nrows[s])
-            li = inverses.pop(s)
+        # The recursion, parents before children; a childless supernode with no rows below is done.
+        for s in todo[(nodes.nrows[todo] > nodes.width[todo]) | (children[todo] > 0)][::-1].tolist():
+            w, nr = width[s], nrows[s]
             out = z[start[s] : start[s + 1]].reshape(nr, w)
             z_rr = None
             if nr > w:
-                p = int(parent[s])
+                p = parent[s]
                 r = rel[rel_start[s] : rel_start[s + 1]]
-                z_rr = fronts[p][np.ix_(r, r)]
-                children[p] -= 1
-                if not children[p]:
+                z_rr = fronts[p].take(r, 0).take(r, 1)
+                pending[p] -= 1
+                if not pending[p]:
                     del fronts[p]
-                b = panels[start[s] : start[s + 1]].reshape(nr, w)[w:] @ li
+                b = panels[start[s] + w * w : start[s + 1]].reshape(nr - w, w) @ inverses[s]
                 zb = z_rr @ b
-                out[:w] = li.T @ li + b.T @ zb
+                out[:w] += b.T @ zb
                 np.negative(zb, out=out[w:])
-            else:
-                out[:] = li.T @ li
-            if children[s]:
+            if pending[s]:
                 front = np.empty((nr, nr))
                 front[:, :w] = out
                 front[:w, w:] = out[w:].T
