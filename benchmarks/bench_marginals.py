@@ -151,10 +151,11 @@ def gtsam_gaussian(gtsam: Any, case: dict[str, Any]) -> tuple[Any, Any, list[int
 
 def run_case(case: dict[str, Any], repeat: int, gtsam: Any) -> dict[str, Any]:
     problem, x, variables = case["problem"], case["x"], case["variables"]
-    # Our linearization, timed at points 1e-12 away (the one at x is remembered, so that
-    # marginal_covariances below reuses it, as after a solve).
-    tiny = problem.manifold.zero_vector(x) + 1e-12
-    lin = median_time(lambda: problem.linearize(problem.manifold.retr(x, tiny)), repeat)[0]
+    # Our linearization, timed at fresh points 1e-9 away (the last one is remembered; the
+    # one at x is made last, so that marginal_covariances below reuses it, as after a solve).
+    zero = problem.manifold.zero_vector(x)
+    nearby = [problem.manifold.retr(x, zero + 1e-9 * (i + 1)) for i in range(repeat)]
+    lin = median_time(lambda: problem.linearize(nearby.pop()), repeat)[0]
     H = problem.linearize(x).hessian
     fns = [lambda: cholesky_factor(H), lambda: marginal_covariances(problem, x, variables)]
     if gtsam is not None:
