@@ -16,6 +16,7 @@ from .errors import (
     ShapeError,
 )
 from .lie import (
+    S3,
     SE2,
     SE3,
     SE23,
@@ -47,6 +48,7 @@ __all__ = [
     "SE3",
     "Sim3",
     "SE23",
+    "S3",
     "Rn",
     "Bundle",
     "angular_distance",

@@ -1,4 +1,4 @@
-"""Symbolic twins of Sim(3), SE₂(3), Rⁿ and bundles, on CasADi matrices (see :mod:`.lie`).
+"""Symbolic twins of Sim(3), SE₂(3), S³, Rⁿ and bundles, on CasADi matrices (see :mod:`.lie`).
 
 Elements are matrices in the numpy groups' matrix form: ``[[s·R, t], [0, 1]]`` (Sim3),
 ``[[R, p, v], [0, 1, 0], [0, 0, 1]]`` (SE23), ``[[I, v], [0, 1]]`` (Rn), the block-diagonal
@@ -14,10 +14,10 @@ from typing import Any, ClassVar
 
 import casadi as ca
 
-from ..lie import SE23, BundleGroup, LieGroup, RnGroup, Sim3, _series
-from .lie import CASADI, Matrix, SymbolicGroup, _column, _so3_exp, _so3_log, _square, cosc, jinv_coef, sinc3
+from ..lie import S3, SE23, BundleGroup, LieGroup, RnGroup, Sim3, _series
+from .lie import CASADI, Matrix, SymbolicGroup, SymSO3, _column, _so3_exp, _so3_log, _square, cosc, jinv_coef, sinc3
 
-__all__ = ["SymSim3", "SymSE23", "sym_rn", "sym_bundle"]
+__all__ = ["SymSim3", "SymSE23", "SymS3", "sym_rn", "sym_bundle"]
 
 
 def _jl_apply(theta: Matrix, v: Matrix) -> Matrix:
@@ -178,6 +178,13 @@ class SymSE23(SymbolicGroup):
         )
 
 
+class SymS3(SymSO3):
+    """S³ in its matrix form, the rotation matrix ``R(q)``: SO(3)'s twin (the tangent and every
+    operation on matrix forms are SO(3)'s; ``q`` and ``−q`` have one matrix)."""
+
+    group = S3
+
+
 class _SymRn(SymbolicGroup):
     """Rⁿ: ``[[I, v], [0, 1]]``."""
 
@@ -311,4 +318,4 @@ def sym_bundle(group: type[BundleGroup], parts: tuple[type[SymbolicGroup], ...])
     return type(f"Sym{group.__name__}", (_SymBundle,), attrs)
 
 
-TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {Sim3: SymSim3, SE23: SymSE23}
+TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {Sim3: SymSim3, SE23: SymSE23, S3: SymS3}

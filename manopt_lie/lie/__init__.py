@@ -5,6 +5,7 @@ from .bundle import Bundle, BundleGroup
 from .calculus import angular_distance, chordal_distance, double_geodesic_distance, integrate, quaternion_distance
 from .extended import SE23, Sim3
 from .groups import SE2, SE3, SO2, SO3
+from .quaternion import S3
 from .rn import Rn, RnGroup
 from .uncertainty import (
     left_to_right_covariance,
@@ -22,6 +23,7 @@ __all__ = [
     "SE3",
     "Sim3",
     "SE23",
+    "S3",
     "Rn",
     "RnGroup",
     "Bundle",

@@ -276,3 +276,43 @@ def test_integrate_bad_input():
 
 def test_left_group_exports():
     assert all(isinstance(g, type) and issubclass(g, LieGroup) for g in (Sim3, SE23, Bundle(SO3)))
+
+
+# ---- S3 ------------------------------------------------------------------------------------
+
+
+def test_s3_is_a_double_cover_of_so3(rng):
+    from manopt_lie import S3
+
+    tau = 2.0 * rng.standard_normal((200, 3))
+    q = S3.exp(tau)
+    np.testing.assert_allclose(q.as_matrix(), SO3.exp(tau).as_matrix(), atol=1e-14)  # the same rotation
+    np.testing.assert_allclose(np.linalg.norm(q.data, axis=-1), 1.0, atol=1e-15)
+    minus = S3(-q.data)
+    np.testing.assert_allclose(minus.log(), q.log(), atol=1e-14)  # Log takes the shorter of ±q
+    assert (np.linalg.norm(q.log(), axis=-1) <= np.pi + 1e-15).all()
+    np.testing.assert_allclose(q.log(), SO3.exp(tau).log(), atol=1e-12)
+    # Exp(θ) for |θ| ∈ (2π, 4π) is −Exp(θ − 2π u): the cover, seen in the stored quaternions.
+    u = tau / np.linalg.norm(tau, axis=-1, keepdims=True)
+    np.testing.assert_allclose(S3.exp(tau + 2 * np.pi * u).data, -q.data, atol=1e-13)
+    # A homomorphism onto SO3: R(q₁ ⊗ q₂) = R(q₁) R(q₂); conversions both ways.
+    p = S3.random(rng, (200,))
+    np.testing.assert_allclose((q @ p).as_matrix(), q.as_matrix() @ p.as_matrix(), atol=1e-14)
+    assert_same(S3.from_rotation(q.to_rotation()), q)
+    np.testing.assert_allclose(S3.from_matrix(q.as_matrix()).data[..., 3] >= 0, True)
+    np.testing.assert_allclose(
+        quaternion_distance(q.as_quaternion(), p.as_quaternion()),
+        quaternion_distance(q.to_rotation(), p.to_rotation()),
+        atol=1e-14,
+    )
+    x = p.act(tau)
+    np.testing.assert_allclose(x, p.to_rotation().act(tau), atol=1e-14)
+
+
+def test_s3_validation():
+    from manopt_lie import S3, NotInGroupError
+
+    with pytest.raises(NotInGroupError, match="not unit"):
+        S3([0.0, 0.0, 0.0, 2.0])
+    np.testing.assert_allclose(S3.from_matrix(np.diag([1.0, -1.0, -1.0])).data, [1.0, 0.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(S3._project(np.array([0.0, 0.0, 1e-200, 1e-200])), [0, 0, 2**-0.5, 2**-0.5])
