@@ -1,4 +1,4 @@
-"""Reading g2o files: chunks of lines → arrays → a :class:`PoseGraph` (the format: the package docstring).
+"""Reading g2o files: chunks of lines → arrays per tag (the format: the package docstring).
 
 The lines come in chunks (:mod:`._source`). A chunk is checked and converted in bulk: one
 pass over its lines sorts the fields by tag (plain Python, the only per-line work), then
@@ -6,9 +6,10 @@ one NumPy conversion per tag turns them into ids and numbers, which are checked 
 array operations (finite, no self-loops, unit quaternions). Only when something is wrong
 is the chunk re-read line by line, to report the earliest bad line with the reason. So
 reading stops at the first bad line, and memory stays near the size of the arrays kept
-per tag (ids, numbers, line numbers). What needs the whole file — duplicate vertex ids,
-edges and ``FIX`` lines naming undefined vertices — is checked at the end, again
-reporting the earliest offending line.
+per tag (ids, numbers, line numbers). What needs the whole file — duplicate ids, edges,
+observations, priors and ``FIX`` lines naming undefined vertices or parameters — is checked
+at the end by :mod:`._assemble`, which builds the graph, again reporting the earliest
+offending line.
 """
 
 from __future__ import annotations
@@ -17,14 +18,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from manopt_lie import SE2, SE3, SO2
 from manopt_lie.lie.base import LieGroup
 
+from ..landmarks import LandmarkGraph
 from ..pose_graph import PoseGraph
-from ._records import RECORDS, TAGS, FloatArray, IntArray, ParseError, Record, dims
+from ._assemble import assemble
+from ._records import DIMENSION_TAGS, RECORDS, FloatArray, IntArray, ParseError, Record, dims
 from ._source import Chunks
 
-__all__ = ["QUATERNION_TOL", "RENORMALIZED", "Stats", "parse"]
+__all__ = ["QUATERNION_TOL", "RENORMALIZED", "Stats", "Tag", "parse"]
 
 QUATERNION_TOL = 1e-4
 """Default largest ``| ‖q‖ − 1 |`` accepted (and normalized away) by :func:`parse`.
@@ -52,7 +54,7 @@ class Stats(NamedTuple):
     """The largest ``| ‖q‖ − 1 |`` in the file (0 for 2-D files)."""
 
 
-class _Tag:
+class Tag:
     """The lines of one tag: the fields of the current chunk (strings, flat), then the
     converted arrays of every chunk so far."""
 
@@ -96,7 +98,7 @@ class _Parser:
         self.filename, self.quaternion_tol = filename, quaternion_tol
         self.group: type[LieGroup] | None = None
         self.first = (0, "")  # line and tag of the first record, for the 2-D/3-D message
-        self.tags: dict[str, _Tag] = {}  # the tags of the file's dimension, once known
+        self.tags: dict[str, Tag] = {}  # every tag of the file's dimension, once known
         self.fix_ids: list[int] = []
         self.fix_lines: list[int] = []
         self.renormalized, self.quaternion_error = 0, 0.0
@@ -159,7 +161,7 @@ class _Parser:
         if self.group is None:
             self.group, self.first = record.group, (lineno, tag)
             if keep:
-                self.tags = {t: _Tag(t, RECORDS[t]) for t in TAGS[record.group]}
+                self.tags = {t: Tag(t, RECORDS[t]) for t in DIMENSION_TAGS[record.group]}
         elif record.group is not self.group:
             first_line, first_tag = self.first
             reason = f"{tag} in a file of {dims(self.group)} records (line {first_line} is {first_tag})"
@@ -171,7 +173,7 @@ class _Parser:
             slot.lines.append(lineno)
         return record
 
-    def _convert(self, slot: _Tag) -> bool:
+    def _convert(self, slot: Tag) -> bool:
         """Convert the chunk's fields of a tag (one NumPy call for the ids, one for the numbers)
         and check them; ``False`` if anything is wrong (the caller finds the line)."""
         record = slot.record
@@ -182,7 +184,7 @@ class _Parser:
             return False
         if not np.isfinite(vals).all() or (record.is_edge and (ids[:, 0] == ids[:, 1]).any()):
             return False
-        if record.group is SE3:
+        if record.quaternion:
             deviation = np.abs(quaternion_norms(vals[:, 3:7]) - 1.0)
             if not (deviation <= self.quaternion_tol).all():
                 return False
@@ -223,105 +225,15 @@ class _Parser:
             vals.append(value.item())
         if record.is_edge and vals[0] == vals[1]:
             raise self.error(f"self-loop edge {vals[0]} → {vals[1]}", lineno)
-        if record.group is SE3:
+        if record.quaternion:
             norm = float(quaternion_norms(np.array([vals[record.ids + 3 : record.ids + 7]]))[0])
             if not abs(norm - 1.0) <= self.quaternion_tol:
-                what = "edge" if record.is_edge else "vertex"
                 tol = self.quaternion_tol
-                raise self.error(f"{what} quaternion norm {norm!r} is not 1 within quaternion_tol={tol:g}", lineno)
-
-    # ---- the whole file ----------------------------------------------------------------
-
-    def finish(self, name: str) -> PoseGraph:
-        """Check what needs the whole file and build the graph."""
-        group = self.group
-        if group is None:
-            raise self.error("no VERTEX or EDGE lines", None)
-        vertex_tag, edge_tag = TAGS[group]
-        v_ids, v_lines = self.tags[vertex_tag].ids_and_lines()
-        e_ids, e_lines = self.tags[edge_tag].ids_and_lines()
-        fixed_ids = np.array(self.fix_ids, dtype=np.int64)
-        ids, order = self._check_ids(v_ids[:, 0], v_lines, e_ids, e_lines, fixed_ids)
-        v_vals = np.concatenate(self.tags[vertex_tag].take_values())
-        poses = _elements(group, v_vals[order]) if v_ids.size else None
-        del v_vals
-        _, first_fix = np.unique(fixed_ids, return_index=True)
-        measurements, information = self._edges(group, edge_tag)
-        return PoseGraph(
-            group=group,
-            edges=np.searchsorted(ids, e_ids),
-            measurements=measurements,
-            information=information,
-            ids=ids,
-            poses=poses,
-            fixed=np.searchsorted(ids, fixed_ids[np.sort(first_fix)]),
-            name=name,
-            edge_lines=e_lines,
-        )
-
-    def _check_ids(
-        self, v_ids: IntArray, v_lines: IntArray, e_ids: IntArray, e_lines: IntArray, fixed_ids: IntArray
-    ) -> tuple[IntArray, IntArray]:
-        """The sorted vertex ids and the order of the vertex lines; raise at the earliest
-        duplicate vertex, edge naming an undefined vertex, or ``FIX`` naming one."""
-        problems: list[tuple[int, str]] = []
-        order = np.argsort(v_ids, kind="stable")
-        if v_ids.size:
-            ids = v_ids[order]
-            dup = np.flatnonzero(ids[1:] == ids[:-1]) + 1
-            if dup.size:
-                row = int(order[dup].min())  # the duplicate that comes last in the file, earliest such line
-                first_row = int(np.flatnonzero(v_ids == v_ids[row])[0])
-                reason = f"duplicate vertex id {v_ids[row]} (first on line {v_lines[first_row]})"
-                problems.append((int(v_lines[row]), reason))
-                ids = np.unique(ids)
-            known = np.isin(e_ids, ids)
-            missing = np.flatnonzero(~known.all(axis=1))
-            if missing.size:
-                row = int(missing[0])
-                absent = e_ids[row][~known[row]][0]
-                reason = f"edge {e_ids[row, 0]} → {e_ids[row, 1]} names vertex {absent}, which has no VERTEX line"
-                problems.append((int(e_lines[row]), reason))
-        else:
-            ids = np.unique(e_ids)
-        unknown = np.flatnonzero(~np.isin(fixed_ids, ids))
-        if unknown.size:
-            problems.append((self.fix_lines[int(unknown[0])], f"FIX names vertex {fixed_ids[unknown[0]]}, not defined"))
-        if problems:
-            lineno, reason = min(problems)
-            raise self.error(reason, lineno)
-        return ids, order
-
-    def _edges(self, group: type[LieGroup], edge_tag: str) -> tuple[LieGroup, FloatArray]:
-        """The measurements and information matrices, built chunk by chunk (each chunk's
-        numbers are dropped once used, so the numbers and the result never coexist whole)."""
-        chunks = self.tags[edge_tag].take_values()
-        m, k, p = sum(len(c) for c in chunks), group.dim, RECORDS[edge_tag].pose
-        upper = np.triu_indices(k)
-        information = np.empty((m, k, k))
-        parts = []
-        at = 0
-        while chunks:
-            vals = chunks.pop(0)
-            block = information[at : at + len(vals)]
-            block[:, upper[0], upper[1]] = vals[:, p:]
-            block[:, upper[1], upper[0]] = vals[:, p:]
-            parts.append(_elements(group, vals))
-            at += len(vals)
-            del vals
-        measurements = parts[0] if len(parts) == 1 else group.concatenate(parts)
-        return measurements, information
+                reason = f"{record.noun} quaternion norm {norm!r} is not 1 within quaternion_tol={tol:g}"
+                raise self.error(reason, lineno)
 
 
-def _elements(group: type[LieGroup], vals: FloatArray) -> LieGroup:
-    """Group elements from the pose fields ``x y θ`` or ``x y z qx qy qz qw`` (leading columns of ``vals``)."""
-    if group is SE2:
-        return SE2.from_rotation_translation(SO2.from_angle(vals[:, 2]), vals[:, :2])
-    # The norm was checked against quaternion_tol already.
-    return SE3.from_translation_quaternion(vals[:, :3], vals[:, 3:7], normalize=True)
-
-
-def parse(chunks: Chunks, filename: str, name: str, quaternion_tol: float) -> tuple[PoseGraph, Stats]:
+def parse(chunks: Chunks, filename: str, name: str, quaternion_tol: float) -> tuple[PoseGraph | LandmarkGraph, Stats]:
     """The graph of a g2o source given as chunks of lines, and what :func:`lint` wants to know."""
     if not 0.0 <= quaternion_tol < 1.0:  # below 1, accepted norms are in (0, 2): normalizing is safe
         raise ValueError(f"quaternion_tol must be in [0, 1), got {quaternion_tol!r}")
@@ -333,5 +245,7 @@ def parse(chunks: Chunks, filename: str, name: str, quaternion_tol: float) -> tu
         close = getattr(chunks, "close", None)
         if close is not None:
             close()  # a bad line stops the reading: the file is closed now, not when the error is
-    graph = parser.finish(name)
+    if parser.group is None:
+        raise parser.error("no VERTEX or EDGE lines", None)
+    graph = assemble(parser.tags, parser.group, parser.fix_ids, parser.fix_lines, parser.filename, name)
     return graph, Stats(parser.renormalized, parser.quaternion_error)

@@ -13,6 +13,9 @@ from manopt_lie.lie.base import LieGroup
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+# What a record is (``Record.kind``).
+POSE, EDGE, LANDMARK, OBSERVATION, PARAM, PRIOR = "pose", "edge", "landmark", "observation", "param", "prior"
+
 
 class ParseError(ValueError):
     """A malformed g2o line, as ``"intel.g2o:123: EDGE_SE2 needs 11 fields, got 9"``.
@@ -39,10 +42,12 @@ class ParseError(ValueError):
 
 
 class Record(NamedTuple):
-    """The layout of one tag: ``ids`` integer ids, ``pose`` numbers, ``info`` upper-triangle
-    entries, ``fields`` their total (the tag excluded)."""
+    """The layout of one tag: ``ids`` integer ids (vertex and parameter ids), ``pose``
+    numbers (a pose, a point or an offset), ``info`` upper-triangle entries, ``fields``
+    their total (the tag excluded); ``kind`` what the line is (:data:`POSE`, …)."""
 
     group: type[LieGroup]
+    kind: str
     ids: int
     pose: int
     info: int
@@ -50,18 +55,39 @@ class Record(NamedTuple):
 
     @property
     def is_edge(self) -> bool:
-        return self.ids == 2
+        """A relative pose between two poses (self-loops are refused)."""
+        return self.kind == EDGE
+
+    @property
+    def quaternion(self) -> bool:
+        """Whether the numbers hold ``x y z qx qy qz qw`` (the quaternion checked and normalized)."""
+        return self.pose == 7
+
+    @property
+    def noun(self) -> str:
+        """What messages call the line's element (``"vertex quaternion norm …"``)."""
+        return {POSE: "vertex", EDGE: "edge", PARAM: "parameter", PRIOR: "prior"}.get(self.kind, self.kind)
 
 
 RECORDS = {
-    "VERTEX_SE2": Record(SE2, 1, 3, 0, 4),
-    "EDGE_SE2": Record(SE2, 2, 3, 6, 11),
-    "VERTEX_SE3:QUAT": Record(SE3, 1, 7, 0, 8),
-    "EDGE_SE3:QUAT": Record(SE3, 2, 7, 21, 30),
+    "VERTEX_SE2": Record(SE2, POSE, 1, 3, 0, 4),
+    "EDGE_SE2": Record(SE2, EDGE, 2, 3, 6, 11),
+    "VERTEX_XY": Record(SE2, LANDMARK, 1, 2, 0, 3),
+    "EDGE_SE2_XY": Record(SE2, OBSERVATION, 2, 2, 3, 7),
+    "EDGE_PRIOR_SE2": Record(SE2, PRIOR, 1, 3, 6, 10),
+    "VERTEX_SE3:QUAT": Record(SE3, POSE, 1, 7, 0, 8),
+    "EDGE_SE3:QUAT": Record(SE3, EDGE, 2, 7, 21, 30),
+    "VERTEX_TRACKXYZ": Record(SE3, LANDMARK, 1, 3, 0, 4),
+    "EDGE_SE3_TRACKXYZ": Record(SE3, OBSERVATION, 3, 3, 6, 12),  # pose, landmark, parameter
+    "PARAMS_SE3OFFSET": Record(SE3, PARAM, 1, 7, 0, 8),
+    "EDGE_SE3_PRIOR": Record(SE3, PRIOR, 2, 7, 21, 30),  # pose, parameter
 }
-TAGS: dict[type[LieGroup], tuple[str, str]] = {
-    SE2: ("VERTEX_SE2", "EDGE_SE2"),
-    SE3: ("VERTEX_SE3:QUAT", "EDGE_SE3:QUAT"),
+TAG: dict[tuple[type[LieGroup], str], str] = {(r.group, r.kind): tag for tag, r in RECORDS.items()}
+"""The tag of each ``(group, kind)``."""
+TAGS: dict[type[LieGroup], tuple[str, str]] = {g: (TAG[g, POSE], TAG[g, EDGE]) for g in (SE2, SE3)}
+"""The pose vertex and edge tags of each group."""
+DIMENSION_TAGS: dict[type[LieGroup], tuple[str, ...]] = {
+    g: tuple(tag for tag, r in RECORDS.items() if r.group is g) for g in (SE2, SE3)
 }
 
 

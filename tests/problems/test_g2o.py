@@ -83,7 +83,7 @@ SE3_GRAPH = text(v3(0), v3(1), e3(0, 1))
 
 # (text, line number, pattern of the reason, read keywords)
 PARSE_ERRORS = {
-    "unknown tag": (text(v2(0), v2(1), "VERTEX_XY 2 1 2", e2(0, 1)), 3, r"unknown tag 'VERTEX_XY'", {}),
+    "unknown tag": (text(v2(0), v2(1), "VERTEX_SE2_XY 2 1 2", e2(0, 1)), 3, r"unknown tag 'VERTEX_SE2_XY'", {}),
     "too few fields": (text(v2(0), v2(1), "EDGE_SE2 0 1 1 0 0.5 5 0 0 5"), 3, r"EDGE_SE2 needs 11 fields, got 9", {}),
     "too many fields": (text(v2(0), v2(1), e2(0, 1) + " 7"), 3, r"EDGE_SE2 needs 11 fields, got 12", {}),
     "vertex fields": (text(v3(0), "VERTEX_SE3:QUAT 1 0 0 0 0 0 1"), 2, r"VERTEX_SE3:QUAT needs 8 fields, got 7", {}),
