@@ -115,6 +115,11 @@ class Graph(ABC):
     def to_g2o(self, x: Any) -> tuple[Any, Any]:
         """The graph and the vertex estimates that represent the solution ``x`` in a g2o file."""
 
+    @property
+    def vertex_ids(self) -> IntArray:
+        """The source's id of every variable, in the problem's global order (block after block)."""
+        return self.ids  # type: ignore[attr-defined, no-any-return]
+
     def pose_graph(self) -> Any:
         """The pose graph within this problem (its poses and relative-pose edges).
 

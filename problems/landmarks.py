@@ -204,6 +204,11 @@ class LandmarkGraph(Graph):
             "landmarks": Power(Euclidean(self.d), self.n_landmarks),
         })  # fmt: skip
 
+    @property
+    def vertex_ids(self) -> IntArray:
+        """Pose ids, then landmark ids (the order of the variables)."""
+        return np.concatenate([self.poses.ids, self.landmark_ids])
+
     def describe(self) -> str:
         return (
             f"{self.n} poses, {self.n_landmarks} landmarks; {self.poses.m} relative poses, "

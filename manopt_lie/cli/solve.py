@@ -14,7 +14,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer
+import numpy as np
+
+from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer, marginal_covariances
 from manopt_lie.problems import KINDS, g2o
 from manopt_lie.problems.graph import Graph
 from manopt_lie.problems.kinds import convert
@@ -48,6 +50,10 @@ def add_parser(commands: Any) -> None:
                        help="write the solution as g2o (atomically; never over the input without --force; "
                        "rotation averaging keeps the file's translations)")
     solve.add_argument("--force", action="store_true", help="allow --out to overwrite the input file")
+    solve.add_argument("--covariances", type=Path, metavar="COV.json",
+                       help="write the marginal covariance of every vertex at the solution, as JSON "
+                       "{vertex id: d×d matrix}: right (local) perturbation X ⊕ τ, translation first "
+                       "(x, y, θ / x, y, z, θx, θy, θz), the fixed vertices (the gauge) as zeros")
     solve.add_argument("--plot", type=Path, metavar="FIG.png",
                        help="trajectories before/after (poses) or convergence (rotations)")
     solve.add_argument("--quaternion-tol", type=_common.number(float, positive=True), default=None, metavar="X",
@@ -65,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         raise _common.UsageError(f"no such file: {args.file}")
     _common.output_path(args.out, "--out", inputs=[args.file], force=args.force)
     _common.output_path(args.plot, "--plot", inputs=[args.file])
+    _common.output_path(args.covariances, "--covariances", inputs=[args.file])
     tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
     graph = convert(g2o.read(args.file, **tol), args.problem)
     cost = args.cost or graph.costs[0]
@@ -101,6 +108,9 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         _common.write_text(args.out, g2o.dumps(*graph.to_g2o(result.x)))
         summary["written"].append(str(args.out))
+    if args.covariances is not None:
+        _common.write_text(args.covariances, _common.json_text(_covariances(graph, problem, result.x), indent=1))
+        summary["written"].append(str(args.covariances))
     if args.plot is not None:
         _plot(args, graph, x0, result, summary)
         summary["written"].append(str(args.plot))
@@ -117,6 +127,13 @@ def run(args: argparse.Namespace) -> int:
     for path in summary["written"]:
         print(f"wrote {path}")
     return code
+
+
+def _covariances(graph: Graph, problem: Any, x: Any) -> dict[str, Any]:
+    """``{vertex id: covariance}`` of every variable (:func:`~manopt_lie.optim.marginal_covariances`)."""
+    ids = graph.vertex_ids
+    cov = marginal_covariances(problem, x, variables=np.arange(len(ids)))
+    return {str(i): cov[v].tolist() for v, i in enumerate(ids.tolist())}
 
 
 def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary: dict[str, Any]) -> None:
