@@ -319,6 +319,20 @@ class Supernodes:
         return mask
 
 
+def _lower_inverses(L: FloatArray) -> FloatArray:
+    """``L⁻¹`` of a batch ``(k, w, w)`` of lower-triangular matrices by forward substitution,
+    ``X[i] = (e_i − L[i, :i] X[:i]) / L[i, i]``: ``w`` steps, each vectorized over the batch
+    (cheaper than ``np.linalg.inv``'s one LU per matrix)."""
+    w = L.shape[-1]
+    X = np.zeros_like(L)
+    scale = 1.0 / np.diagonal(L, axis1=1, axis2=2)
+    for i in range(w):  # over the rows of one width, not over supernodes
+        row = -np.einsum("kj,kjl->kl", L[:, i, :i], X[:, :i, :])
+        row[:, i] += 1.0
+        X[:, i, :] = row * scale[:, i, None]
+    return X
+
+
 def _diagonal_inverses(nodes: Supernodes, panels: FloatArray, todo: IntArray, z: FloatArray) -> dict[int, FloatArray]:
     """``L_JJ⁻¹`` of the supernodes ``todo``, batched over supernodes of equal width, and
     ``L_JJ⁻ᵀ L_JJ⁻¹`` written into the diagonal blocks of ``z``."""
@@ -326,7 +340,7 @@ def _diagonal_inverses(nodes: Supernodes, panels: FloatArray, todo: IntArray, z:
     for w in np.unique(nodes.width[todo]).tolist():  # a few distinct widths
         group = todo[nodes.width[todo] == w]
         at = nodes.panel_start[group][:, None] + np.arange(w * w)  # the first w rows of each panel
-        inverse = np.linalg.inv(panels[at].reshape(-1, w, w))
+        inverse = _lower_inverses(panels[at].reshape(-1, w, w))
         z[at] = (np.swapaxes(inverse, 1, 2) @ inverse).reshape(-1, w * w)
         out.update(zip(group.tolist(), inverse, strict=True))
     return out

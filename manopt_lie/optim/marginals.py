@@ -321,7 +321,9 @@ def _scalar(offsets: IntArray, dims: IntArray, variables: IntArray) -> tuple[Int
     return np.repeat(offsets[variables] - first, width) + np.arange(int(width.sum())), first
 
 
-def _solve_blocks(factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request]) -> list[FloatArray]:
+def _solve_blocks(
+    factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request], free: Any = None
+) -> list[FloatArray]:
     """The blocks from the columns ``X = H⁻¹ E_v`` of every column variable ``v``, solved in
     chunks of at most :data:`_CHUNK_BYTES` of right-hand sides."""
     columns = np.unique(np.concatenate([np.zeros(0, np.int64)] + [r.v for r in requests]))
@@ -343,11 +345,15 @@ def _solve_blocks(factor: Any, offsets: IntArray, dims: IntArray, requests: list
     return out
 
 
-def _selected_blocks(factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request]) -> list[FloatArray]:
+def _selected_blocks(
+    factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request], free: NDArray[np.bool_]
+) -> list[FloatArray]:
     """The blocks from the selected inverse on the factor's pattern, restricted to the
     supernodes of the requested variables; blocks off the pattern from solves."""
     involved = np.unique(np.concatenate([np.zeros(0, np.int64)] + [a for r in requests for a in (r.u, r.v)]))
-    inverse = SelectedInverse(factor, _scalar(offsets, dims, involved)[0])
+    # Restricted to the involved variables' supernodes and their ancestors, unless that is all.
+    every = involved.size == np.count_nonzero(free)
+    inverse = SelectedInverse(factor, None if every else _scalar(offsets, dims, involved)[0])
     out, missing = [], []
     for r in requests:
         values, found = inverse.entries(*_coordinates(offsets, r))
@@ -427,11 +433,13 @@ def marginal_covariances(
     groups = [(bu, bv) for bu in range(nb) for bv in range(nb)]
     in_group = [np.flatnonzero((pair_of[:, 0] == bu) & (pair_of[:, 1] == bv) & free_pairs) for bu, bv in groups]
     requests += [_Request(pr[i, 0], pr[i, 1], bd[bu], bd[bv]) for i, (bu, bv) in zip(in_group, groups, strict=True)]
-    columns = np.unique(np.concatenate([np.zeros(0, np.int64)] + [r.v for r in requests]))
+    columns = var[free[var]]  # sorted, unique
+    if free_pairs.any():
+        columns = np.union1d(columns, pr[free_pairs, 1])
     if method == "auto":
         method = "solve" if dims[columns].sum() <= SOLVE_COLUMNS else "selected"
     if columns.size:
-        values = (_solve_blocks if method == "solve" else _selected_blocks)(factor, offsets, dims, requests)
+        values = (_solve_blocks if method == "solve" else _selected_blocks)(factor, offsets, dims, requests, free)
     else:
         values = [np.zeros((0, r.du, r.dv)) for r in requests]
     blocks = []
