@@ -309,9 +309,8 @@ class _Request(NamedTuple):
 
 def _coordinates(offsets: IntArray, r: _Request, mine: Any = slice(None)) -> tuple[IntArray, IntArray]:
     """Scalar rows ``(q, du, 1)`` and columns ``(q, 1, dv)`` of the requested blocks."""
-    return offsets[r.u[mine]][:, None, None] + np.arange(r.du)[:, None], offsets[r.v[mine]][:, None, None] + np.arange(
-        r.dv
-    )
+    rows = offsets[r.u[mine]][:, None, None] + np.arange(r.du)[:, None]
+    return rows, offsets[r.v[mine]][:, None, None] + np.arange(r.dv)
 
 
 def _scalar(offsets: IntArray, dims: IntArray, variables: IntArray) -> tuple[IntArray, IntArray]:
@@ -321,9 +320,7 @@ def _scalar(offsets: IntArray, dims: IntArray, variables: IntArray) -> tuple[Int
     return np.repeat(offsets[variables] - first, width) + np.arange(int(width.sum())), first
 
 
-def _solve_blocks(
-    factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request], free: Any = None
-) -> list[FloatArray]:
+def _solve_blocks(factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request]) -> list[FloatArray]:
     """The blocks from the columns ``X = H⁻¹ E_v`` of every column variable ``v``, solved in
     chunks of at most :data:`_CHUNK_BYTES` of right-hand sides."""
     columns = np.unique(np.concatenate([np.zeros(0, np.int64)] + [r.v for r in requests]))
@@ -346,14 +343,13 @@ def _solve_blocks(
 
 
 def _selected_blocks(
-    factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request], free: NDArray[np.bool_]
+    factor: Any, offsets: IntArray, dims: IntArray, requests: list[_Request], n_free: int
 ) -> list[FloatArray]:
     """The blocks from the selected inverse on the factor's pattern, restricted to the
-    supernodes of the requested variables; blocks off the pattern from solves."""
+    supernodes of the requested variables (unless they are all ``n_free`` free ones) and
+    their ancestors; blocks off the pattern from solves."""
     involved = np.unique(np.concatenate([np.zeros(0, np.int64)] + [a for r in requests for a in (r.u, r.v)]))
-    # Restricted to the involved variables' supernodes and their ancestors, unless that is all.
-    every = involved.size == np.count_nonzero(free)
-    inverse = SelectedInverse(factor, None if every else _scalar(offsets, dims, involved)[0])
+    inverse = SelectedInverse(factor, None if involved.size == n_free else _scalar(offsets, dims, involved)[0])
     out, missing = [], []
     for r in requests:
         values, found = inverse.entries(*_coordinates(offsets, r))
@@ -438,10 +434,12 @@ def marginal_covariances(
         columns = np.union1d(columns, pr[free_pairs, 1])
     if method == "auto":
         method = "solve" if dims[columns].sum() <= SOLVE_COLUMNS else "selected"
-    if columns.size:
-        values = (_solve_blocks if method == "solve" else _selected_blocks)(factor, offsets, dims, requests, free)
-    else:
+    if not columns.size:
         values = [np.zeros((0, r.du, r.dv)) for r in requests]
+    elif method == "solve":
+        values = _solve_blocks(factor, offsets, dims, requests)
+    else:
+        values = _selected_blocks(factor, offsets, dims, requests, int(np.count_nonzero(free)))
     blocks = []
     for b in range(nb):
         out = np.zeros((int(np.count_nonzero(of == b)), bd[b], bd[b]))
