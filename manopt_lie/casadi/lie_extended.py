@@ -1,4 +1,4 @@
-"""Symbolic twins of Sim(3), SE₂(3), S³, Rⁿ and bundles, on CasADi matrices (see :mod:`.lie`).
+"""Symbolic twins of Sim(3), Sim(2), SE₂(3), S³, Rⁿ and bundles, on CasADi matrices (see :mod:`.lie`).
 
 Elements are matrices in the numpy groups' matrix form: ``[[s·R, t], [0, 1]]`` (Sim3),
 ``[[R, p, v], [0, 1, 0], [0, 0, 1]]`` (SE23), ``[[I, v], [0, 1]]`` (Rn), the block-diagonal
@@ -14,10 +14,10 @@ from typing import Any, ClassVar
 
 import casadi as ca
 
-from ..lie import S3, SE23, BundleGroup, LieGroup, RnGroup, Sim3, _series
+from ..lie import S3, SE23, BundleGroup, LieGroup, RnGroup, Sim2, Sim3, _series
 from .lie import CASADI, Matrix, SymbolicGroup, SymSO3, _column, _so3_exp, _so3_log, _square, cosc, jinv_coef, sinc3
 
-__all__ = ["SymSim3", "SymSE23", "SymS3", "sym_rn", "sym_bundle"]
+__all__ = ["SymSim3", "SymSim2", "SymSE23", "SymS3", "sym_rn", "sym_bundle"]
 
 
 def _jl_apply(theta: Matrix, v: Matrix) -> Matrix:
@@ -106,6 +106,87 @@ class SymSim3(SymbolicGroup):
         top = ca.horzcat(m, ca.mtimes(ca.skew(t), r), -t)
         mid = ca.horzcat(ca.DM.zeros(3, 3), r, ca.DM.zeros(3, 1))
         return ca.vertcat(top, mid, ca.horzcat(ca.DM.zeros(1, 6), ca.DM.ones(1, 1)))
+
+
+class SymSim2(SymbolicGroup):
+    """Sim(2): ``3×3`` ``[[s·R, t], [0, 1]]``, tangent ``(ρx, ρy, θ, σ)`` as ``4×1``."""
+
+    group = Sim2
+    dim = 4
+    size = 3
+
+    @classmethod
+    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
+        a = cls._element(x, name)
+        return a[:2, :2], a[:2, 2]
+
+    @classmethod
+    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
+        return ca.vertcat(ca.horzcat(m, t), ca.horzcat(ca.DM.zeros(1, 2), ca.DM.ones(1, 1)))
+
+    @classmethod
+    def from_matrix(cls, m: Any) -> Matrix:
+        return cls._assemble(*cls._split(m, "m"))
+
+    @staticmethod
+    def _w(sigma: Matrix, theta: Matrix) -> tuple[Matrix, Matrix]:
+        t = theta * theta
+        a, b, c = _series.sim3_coefficients(sigma, t, CASADI)
+        return a - c * t, b * theta
+
+    @classmethod
+    def exp(cls, tau: Any) -> Matrix:
+        """``[[e^σ R(θ), (A I + B J) ρ], [0, 1]]``."""
+        tau = cls._tangent(tau)
+        rho, theta, sigma = tau[:2], tau[2], tau[3]
+        a, b = cls._w(sigma, theta)
+        c, s = ca.cos(theta), ca.sin(theta)
+        r = ca.exp(sigma) * ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+        return cls._assemble(r, ca.vertcat(a * rho[0] - b * rho[1], a * rho[1] + b * rho[0]))
+
+    @classmethod
+    def log(cls, x: Any) -> Matrix:
+        m, t = cls._split(x)
+        theta = ca.atan2(m[1, 0], m[0, 0])
+        sigma = ca.log(ca.norm_2(m[:, 0]))
+        a, b = cls._w(sigma, theta)
+        d = a * a + b * b
+        return ca.vertcat((a * t[0] + b * t[1]) / d, (a * t[1] - b * t[0]) / d, theta, sigma)
+
+    @classmethod
+    def hat(cls, tau: Any) -> Matrix:
+        tau = cls._tangent(tau)
+        top = ca.horzcat(ca.vertcat(ca.horzcat(tau[3], -tau[2]), ca.horzcat(tau[2], tau[3])), tau[:2])
+        return ca.vertcat(top, ca.DM.zeros(1, 3))
+
+    @classmethod
+    def vee(cls, m: Any) -> Matrix:
+        a = _square(m, 3, "M")
+        return ca.vertcat(a[0, 2], a[1, 2], 0.5 * (a[1, 0] - a[0, 1]), 0.5 * (a[0, 0] + a[1, 1]))
+
+    @classmethod
+    def compose(cls, x: Any, y: Any) -> Matrix:
+        ma, ta = cls._split(x, "X")
+        mb, tb = cls._split(y, "Y")
+        return cls._assemble(ca.mtimes(ma, mb), ca.mtimes(ma, tb) + ta)
+
+    @classmethod
+    def inverse(cls, x: Any) -> Matrix:
+        m, t = cls._split(x)
+        mi = m.T / ca.sumsqr(m[:, 0])
+        return cls._assemble(mi, -ca.mtimes(mi, t))
+
+    @classmethod
+    def act(cls, x: Any, p: Any) -> Matrix:
+        m, t = cls._split(x)
+        return ca.mtimes(m, _column(p, 2, "p")) + t
+
+    @classmethod
+    def adjoint(cls, x: Any) -> Matrix:
+        """``[[sR, (t_y, −t_x)ᵀ, −t], [0, 1, 0], [0, 0, 1]]``."""
+        m, t = cls._split(x)
+        top = ca.horzcat(m, ca.vertcat(t[1], -t[0]), -t)
+        return ca.vertcat(top, ca.horzcat(ca.DM.zeros(2, 2), ca.DM.eye(2)))
 
 
 class SymSE23(SymbolicGroup):
@@ -318,4 +399,4 @@ def sym_bundle(group: type[BundleGroup], parts: tuple[type[SymbolicGroup], ...])
     return type(f"Sym{group.__name__}", (_SymBundle,), attrs)
 
 
-TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {Sim3: SymSim3, SE23: SymSE23, S3: SymS3}
+TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {Sim3: SymSim3, Sim2: SymSim2, SE23: SymSE23, S3: SymS3}

@@ -3,7 +3,7 @@
 from .base import LieGroup
 from .bundle import Bundle, BundleGroup
 from .calculus import angular_distance, chordal_distance, double_geodesic_distance, integrate, quaternion_distance
-from .extended import SE23, Sim3
+from .extended import SE23, Sim2, Sim3
 from .groups import SE2, SE3, SO2, SO3
 from .quaternion import S3
 from .rn import Rn, RnGroup
@@ -22,6 +22,7 @@ __all__ = [
     "SE2",
     "SE3",
     "Sim3",
+    "Sim2",
     "SE23",
     "S3",
     "Rn",

@@ -11,12 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _matrix, _series, _so3
+from . import _doubling, _matrix, _series, _so3
 from ._checks import FloatArray
 
 SIGMA_MAX = 700.0  # e^700 ≈ 1e304: beyond it the element itself is not representable
-DOUBLING_NORM = 0.25  # ‖ad_τ‖_F below which Jr's series (13 terms) is exact to ~1e-19
-_JR_SERIES = tuple(1.0 / float(np.prod(np.arange(1, k + 2))) for k in range(13))  # 1/(k+1)!
 
 
 def _sq(v: FloatArray) -> FloatArray:
@@ -51,14 +49,13 @@ def scale(m: FloatArray) -> FloatArray:
     return big * np.sqrt(_sq(col / safe[..., None]))
 
 
-def _unit_coefficients(theta: FloatArray, sigma: FloatArray) -> tuple[FloatArray, ...]:
-    """``(u, a, bθ, cθ²)`` for ``|θ| ≥ _so3.HUGE``, so that ``W = a I + bθ [u]× + cθ² [u]×²``.
+def w_unit(sigma: FloatArray, h: FloatArray, s: FloatArray, c: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(a, bθ, cθ²)`` for huge angles ``θ = 2h`` (``s, c = sin h, cos h``): ``W = a I + bθ [u]× + cθ² [u]×²``.
 
-    With ``h = θ/2``, ``1/θ = ½/h``, ``r = t/(σ² + t) = 1/(1 + (σ/θ)²)``, ``t cosc θ = 2 sin²h``,
+    With ``1/θ = ½/h``, ``r = t/(σ² + t) = 1/(1 + (σ/θ)²)``, ``t cosc θ = 2 sin²h``,
     ``t sinc3 θ = 1 − sin h cos h/h``, ``t q_coef2 θ = ½ − (sin h/h)²/2``:
     ``bθ = (σ²μ₁ + e^σ(2 sin²h − σ t sinc3)) r/θ``, ``cθ² = (σ²μ₂/2 + e^σ(t sinc3 − σ t q_coef2)) r``.
     """
-    u, h, s, c = _so3.polar(theta)
     es, mu0, mu1, mu2 = _series.sim3_moments(sigma)
     inv = 0.5 / h
     r = 1.0 / (1.0 + (sigma * inv) ** 2)
@@ -66,7 +63,13 @@ def _unit_coefficients(theta: FloatArray, sigma: FloatArray) -> tuple[FloatArray
     tq2 = 0.5 - 0.5 * (s / h) ** 2
     b = (sigma * sigma * mu1 + es * (2.0 * s * s - sigma * ts3)) * inv * r
     cc = (0.5 * sigma * sigma * mu2 + es * (ts3 - sigma * tq2)) * r
-    return u, mu0, b, cc
+    return mu0, b, cc
+
+
+def _unit_coefficients(theta: FloatArray, sigma: FloatArray) -> tuple[FloatArray, ...]:
+    """``(u, a, bθ, cθ²)`` for ``|θ| ≥ _so3.HUGE`` (:func:`w_unit` on the axis and half angle of ``θ``)."""
+    u, h, s, c = _so3.polar(theta)
+    return (u, *w_unit(sigma, h, s, c))
 
 
 def _w_apply_huge(theta: FloatArray, v: FloatArray, sigma1: FloatArray) -> FloatArray:
@@ -156,30 +159,8 @@ def ad(tau: FloatArray) -> FloatArray:
 
 
 def jr(tau: FloatArray) -> FloatArray:
-    """``Jr(τ) = Σₖ (−ad_τ)ᵏ/(k+1)!``, numerically exact through doubling.
-
-    ``Exp(2τ) = Exp(τ)²`` gives ``Jr(2τ) = ½ (I + Ad_{Exp τ}⁻¹) Jr(τ)``. With ``K`` the
-    smallest integer such that ``‖ad_τ‖_F / 2ᴷ ≤ 0.25`` (one ``K`` for the batch), the
-    13-term series at ``τ/2ᴷ`` (remainder below 1e-19) is doubled back ``K`` times —
-    ``K`` batched compositions, no loop over elements (``K ≈ 5`` for ``|τ| ≈ 3``). ``Jr`` is
-    linear in ``ρ`` (only its top-right blocks depend on it), so ``ρ`` is scaled to
-    ``|ρ|∞ ≤ 1`` first and those blocks scaled back: ``K`` depends on ``θ`` and ``σ`` only.
-    """
-    m = np.maximum(np.abs(tau[..., :3]).max(axis=-1), 1.0)
-    unit = np.concatenate([tau[..., :3] / m[..., None], tau[..., 3:]], axis=-1)
-    a = ad(unit)
-    big = np.abs(a).max(initial=0.0)  # 7·big ≥ ‖ad‖_F (and log₂ of it never overflows)
-    k = int(np.ceil(np.log2(big) + np.log2(7.0 / DOUBLING_NORM))) if big > DOUBLING_NORM / 7.0 else 0
-    x = np.ldexp(-a, -k)
-    eye = np.eye(7)
-    j = _JR_SERIES[-1] * x + _JR_SERIES[-2] * eye
-    for c in _JR_SERIES[-3::-1]:
-        j = j @ x + c * eye
-    half = np.ldexp(unit, -k)
-    for level in range(k):
-        j = 0.5 * (j + adjoint(inverse(exp(np.ldexp(half, level)))) @ j)
-    j[..., :3, 3:] *= m[..., None, None]
-    return j
+    """``Jr(τ) = Σₖ (−ad_τ)ᵏ/(k+1)!``, numerically exact by doubling (``_doubling.jr``)."""
+    return _doubling.jr(tau, 3, ad, exp, inverse, adjoint)
 
 
 def jr_inv(tau: FloatArray) -> FloatArray:

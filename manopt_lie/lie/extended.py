@@ -1,4 +1,4 @@
-"""Sim(3) and SE₂(3): the similarity group and the extended poses, on the kernels of ``_sim3``/``_se23``.
+"""Sim(3), Sim(2) and SE₂(3): similarities and extended poses, on the kernels of ``_sim3``/``_sim2``/``_se23``.
 
 Storage and tangent ordering follow CONVENTIONS §2: ``Sim3`` as ``(..., 4, 4)`` matrices
 ``[[s·R, t], [0, 1]]`` with tangent ``(ρ, θ, σ)``; ``SE23`` as ``(..., 5, 5)`` matrices
@@ -11,12 +11,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import NotInGroupError, RangeError
-from . import _matrix, _se23, _sim3
+from . import _matrix, _se23, _sim2, _sim3
 from ._checks import FloatArray, as_batch
 from .base import LieGroup
-from .groups import SO3
+from .groups import SO2, SO3
 
-__all__ = ["Sim3", "SE23"]
+__all__ = ["Sim3", "Sim2", "SE23"]
 
 
 def _first(bad: np.ndarray) -> tuple[int, ...]:
@@ -50,13 +50,7 @@ class Sim3(LieGroup):
 
     @staticmethod
     def _exp(tau: FloatArray) -> FloatArray:
-        sigma = tau[..., 6]
-        bad = ~(np.abs(sigma) <= _sim3.SIGMA_MAX)
-        if bad.any():
-            raise RangeError(
-                f"tau: log-scale σ = {sigma[bad].flat[0]:g} at batch index {_first(bad)} is outside "
-                f"[-{_sim3.SIGMA_MAX:g}, {_sim3.SIGMA_MAX:g}]: the scale e^σ is not representable"
-            )
+        _refuse_scale(tau[..., 6], _sim3.SIGMA_MAX)
         with np.errstate(over="ignore"):
             out = _sim3.exp(tau)
         bad = ~np.isfinite(out).all(axis=(-2, -1))
@@ -90,11 +84,12 @@ class Sim3(LieGroup):
 
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray:
-        """Nearest ``sR`` in Frobenius norm: ``R`` the nearest rotation, ``s = ⟨R, M⟩_F / 3``."""
+        """Nearest ``sR`` in Frobenius norm: ``R`` the nearest rotation, ``s = ⟨R, M⟩_F / d``."""
         sr, t = _matrix.split(a)
         r = _matrix.project_rotation(sr)
         big = np.abs(sr).max(axis=(-2, -1))
-        s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / 3.0 * big
+        d = sr.shape[-1]
+        s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / d * big
         bad = ~(s > 0.0)
         if bad.any():
             raise NotInGroupError(f"from_matrix: matrix at batch index {_first(bad)} has no positive scale")
@@ -120,6 +115,95 @@ class Sim3(LieGroup):
     def scale(self) -> FloatArray:
         """``s = e^σ``, shape ``batch_shape``."""
         return _sim3.scale(self._data)
+
+
+def _refuse_scale(sigma: FloatArray, limit: float) -> None:
+    bad = ~(np.abs(sigma) <= limit)
+    if bad.any():
+        raise RangeError(
+            f"tau: log-scale σ = {sigma[bad].flat[0]:g} at batch index {_first(bad)} is outside "
+            f"[-{limit:g}, {limit:g}]: the scale e^σ is not representable"
+        )
+
+
+class Sim2(LieGroup):
+    """Planar similarities ``X·p = s R p + t``: ``(..., 3, 3)`` matrices ``[[s·R, t], [0, 1]]``,
+    tangent ``(ρx, ρy, θ, σ)`` as ``(..., 4)``; ``hat = [[θJ + σI, ρ], [0, 0]]``.
+
+    ``|σ| ≤ 700``, else :class:`RangeError`. ``jr`` is numerically exact by doubling.
+    """
+
+    __slots__ = ()
+    dim = 4
+    point_dim = 2
+    storage_shape = (3, 3)
+
+    _log = staticmethod(_sim2.log)
+    _compose = staticmethod(_matrix.h_compose)
+    _inverse = staticmethod(_sim2.inverse)
+    _act = staticmethod(_matrix.h_act)
+    _act_jac = staticmethod(_sim2.act_jac)
+    _adjoint = staticmethod(_sim2.adjoint)
+    _ad = staticmethod(_sim2.ad)
+    _jr = staticmethod(_sim2.jr)
+    _jr_inv = staticmethod(_sim2.jr_inv)
+    _hat = staticmethod(_sim2.hat)
+    _vee = staticmethod(_sim2.vee)
+
+    @staticmethod
+    def _exp(tau: FloatArray) -> FloatArray:
+        _refuse_scale(tau[..., 3], _sim2.SIGMA_MAX)
+        with np.errstate(over="ignore"):
+            out = _sim2.exp(tau)
+        bad = ~np.isfinite(out).all(axis=(-2, -1))
+        if bad.any():
+            raise RangeError(f"tau: the translation W(σ, θ)ρ at batch index {_first(bad)} overflows float64")
+        return out
+
+    @classmethod
+    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
+        return np.array(np.broadcast_to(np.eye(3), batch + (3, 3)))
+
+    @classmethod
+    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
+        """Uniform angles, ``t ~ N(0, I)``, ``σ ~ N(0, 1)``."""
+        r = SO2._random(rng, batch) * np.exp(rng.standard_normal(batch))[..., None, None]
+        return _matrix.assemble(r, rng.standard_normal(batch + (2,)))
+
+    @classmethod
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        sr, t = _matrix.split(a)
+        s = _sim2.scale(a)
+        bad = ~(s > 0.0)
+        if bad.any():
+            raise NotInGroupError(f"{name}: matrix at batch index {_first(bad)} has a zero first column (scale s = 0)")
+        r = sr / s[..., None, None]
+        _matrix.check_rotation(r, tol, name)
+        _matrix.check_last_row(a, tol, name)
+        return _matrix.assemble(_matrix.polish_rotation(r) * s[..., None, None], t)
+
+    _project = classmethod(Sim3._project.__func__)  # type: ignore[attr-defined]
+
+    @classmethod
+    def from_parts(cls, rotation: SO2, translation: ArrayLike, scale: ArrayLike) -> Sim2:
+        """``[[s·R, t], [0, 1]]`` from a rotation, translations ``(..., 2)`` and scales ``s > 0``."""
+        s = as_batch(scale, (), "scale")
+        if not (s > 0).all():
+            raise NotInGroupError("from_parts: scales must be > 0")
+        r = SO2._same(rotation).as_matrix() * s[..., None, None]
+        return cls._wrap(_matrix.assemble(r, as_batch(translation, (2,), "translation")))
+
+    def rotation(self) -> SO2:
+        """``R``."""
+        return SO2._wrap(self._data[..., :2, :2] / self.scale()[..., None, None])
+
+    def translation(self) -> FloatArray:
+        """``t``, ``(..., 2)`` (a read-only view)."""
+        return self._data[..., :2, 2]
+
+    def scale(self) -> FloatArray:
+        """``s = e^σ``, shape ``batch_shape``."""
+        return _sim2.scale(self._data)
 
 
 class SE23(LieGroup):

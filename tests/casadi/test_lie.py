@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, LieGroup, Rn, ShapeError, Sim3
+from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, LieGroup, Rn, ShapeError, Sim2, Sim3
 from manopt_lie.casadi import SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
 from manopt_lie.casadi import lie as casadi_lie
 from manopt_lie.lie import _series
@@ -302,7 +302,7 @@ def test_numpy_and_casadi_atan2_ratio_agree():
 
 # ---- the twins of Sim3, SE23, Rn and bundles (casadi.lie_extended) ----------------------------
 
-NEW = [Sim3, SE23, S3, Rn(3), Bundle(SO3, Rn(3)), Bundle(SE2, Sim3), Bundle(S3, SE23)]
+NEW = [Sim3, Sim2, SE23, S3, Rn(3), Bundle(SO3, Rn(3)), Bundle(SE2, Sim3), Bundle(S3, SE23)]
 
 
 def _twin(group: type[LieGroup]) -> type[SymbolicGroup]:
@@ -322,8 +322,8 @@ def _new_tangent(group: type[LieGroup], regime: str, rng: np.random.Generator) -
         tau[part] *= (np.pi - 1e-9) / np.linalg.norm(tau[part])
         if group is Sim3:
             tau[6] = 0.0
-    if regime == "large_scale" and group is Sim3:
-        tau[6] = 6.0 * np.sign(tau[6])
+    if regime == "large_scale" and group in (Sim3, Sim2):
+        tau[-1] = 6.0 * np.sign(tau[-1])
     return tau
 
 

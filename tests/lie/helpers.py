@@ -7,23 +7,24 @@ from typing import Any
 
 import numpy as np
 
-from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, LieGroup, Rn, Sim3
+from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, LieGroup, Rn, Sim2, Sim3
 
-GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Sim3, SE23, S3, Rn(3), Bundle(SO3, Rn(3))]
+GROUPS: list[type[LieGroup]] = [SO2, SO3, SE2, SE3, Sim3, Sim2, SE23, S3, Rn(3), Bundle(SO3, Rn(3))]
 BATCH_SHAPES: list[tuple[int, ...]] = [(), (1,), (3, 1, 2)]
 REGIMES = ["identity", "tiny", "random", "uniform", "near_pi"]
 # Regimes of one group only: Sim(3) with a large log-scale |σ| = 6 (s = e^±6 ≈ 400^±1; products and
 # quotients of two such elements reach e^±12). Larger |σ| (to ±700): tests/lie/test_new_groups.py.
-EXTRA_REGIMES: dict[type[LieGroup], list[str]] = {Sim3: ["large_scale"]}
+EXTRA_REGIMES: dict[type[LieGroup], list[str]] = {Sim3: ["large_scale"], Sim2: ["large_scale"]}
 FRAMES = ["right", "left"]
 
 # Slice of the rotation coordinates inside each group's tangent vector.
 ROTATION_PART = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6), Sim3: slice(3, 6)}
 ROTATION_PART[SE23] = slice(6, 9)
 ROTATION_PART[S3] = slice(0, 3)
+ROTATION_PART[Sim2] = slice(2, 3)
 ROTATION_PART[Bundle(SO3, Rn(3))] = slice(0, 3)
 # Slice of the log-scale σ (Sim(3)): 0 in the near-π regime (σ = 0 with θ ≈ π, a hard point).
-SCALE_PART = {Sim3: slice(6, 7)}
+SCALE_PART = {Sim3: slice(6, 7), Sim2: slice(3, 4)}
 
 
 def cases(groups: list[type[LieGroup]] | None = None) -> list[Any]:

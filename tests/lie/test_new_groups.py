@@ -15,6 +15,7 @@ from manopt_lie import (
     LieGroup,
     RangeError,
     Rn,
+    Sim2,
     Sim3,
     angular_distance,
     chordal_distance,
@@ -31,7 +32,7 @@ from .helpers import GROUPS, assert_same, group_id
 groups = pytest.mark.parametrize("group", GROUPS, ids=group_id)
 
 
-@pytest.mark.parametrize("group", [Sim3, SE23], ids=group_id)
+@pytest.mark.parametrize("group", [Sim3, Sim2, SE23], ids=group_id)
 def test_exp_log_against_matrix_exponential(group, rng):
     """The closed forms are ``expm``/``logm`` of the Lie algebra matrices (hat of CONVENTIONS §2)."""
     for _ in range(20):
@@ -50,6 +51,20 @@ def test_sim3_reduces_to_se3_at_unit_scale(rng):
     np.testing.assert_allclose(Sim3.jr(tau7)[..., :6, :6], SE3.jr(tau), atol=1e-13)
     np.testing.assert_allclose(Sim3.exp(tau7).log()[..., :6], SE3.exp(tau).log(), atol=1e-13)
     np.testing.assert_allclose(Sim3.exp(tau7).adjoint()[..., :6, :6], SE3.exp(tau).adjoint(), atol=1e-14)
+
+
+def test_sim2_is_sim3_in_the_plane_and_se2_at_unit_scale(rng):
+    from manopt_lie import SE2
+
+    tau = rng.standard_normal((50, 4))
+    plane = np.zeros((50, 7))
+    plane[:, [0, 1, 5, 6]] = tau
+    keep = [0, 1, 3]
+    np.testing.assert_allclose(Sim3.exp(plane).as_matrix()[:, keep][:, :, keep], Sim2.exp(tau).as_matrix(), atol=1e-14)
+    np.testing.assert_allclose(Sim3.jr(plane)[:, [0, 1, 5, 6]][:, :, [0, 1, 5, 6]], Sim2.jr(tau), atol=1e-12)
+    tau[:, 3] = 0.0
+    np.testing.assert_allclose(Sim2.exp(tau).as_matrix(), SE2.exp(tau[:, :3]).as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(Sim2.jr(tau)[:, :3, :3], SE2.jr(tau[:, :3]), atol=1e-13)
 
 
 def test_se23_with_zero_velocity_is_se3(rng):

@@ -9,13 +9,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manopt_lie import SE2, SE3, SE23, SO2, SO3, Bundle, NonFiniteError, NotInGroupError, Rn, Sim3
+from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, NonFiniteError, NotInGroupError, Rn, Sim2, Sim3
 from manopt_lie.lie import _se3, _so3
 
-GROUPS = [SO2, SO3, SE2, SE3, Sim3, SE23, Rn(3), Bundle(SO3, Rn(3))]
+GROUPS = [SO2, SO3, SE2, SE3, Sim3, Sim2, SE23, S3, Rn(3), Bundle(SO3, Rn(3))]
 ids = [g.__name__ for g in GROUPS]
 ROTATION = {SO2: slice(0, 1), SO3: slice(0, 3), SE2: slice(2, 3), SE3: slice(3, 6), Sim3: slice(3, 6)}
 ROTATION[SE23] = slice(6, 9)
+ROTATION[Sim2] = slice(2, 3)
 # Norms from the denormal range to the largest float, across every internal switch (1e20 …).
 SCALES = [5e-324, 1e-300, 1e-160, 1e-20, 1e20, 1e25, 1e50, 1e100, 1e154, 1e160, 1e300, 1e308]
 
@@ -30,12 +31,12 @@ def _rotation_error(m: np.ndarray, d: int) -> float:
 def test_exp_and_jacobians_are_finite_for_every_finite_tangent(group, scale, rng):
     """Audit: ``SO3.exp``/``SE3.exp`` of a tangent of norm > 1e154 returned all-nan elements (θ²
     overflowed); the Jacobians did too from θ ≈ 1e61 on (θ³…θ⁵ in the closed forms)."""
-    tau = scale * rng.uniform(-1.0, 1.0, (64 if group is not Sim3 else 8, group.dim))
+    tau = scale * rng.uniform(-1.0, 1.0, (64 if group not in (Sim3, Sim2) else 8, group.dim))
     if group in ROTATION and scale > 1e300:  # translations of 1e308 overflow Jr's ~|ρ|·θ entries honestly
         tau[..., np.arange(group.dim) < ROTATION[group].start] *= 1e300 / scale
-    if group is Sim3:  # |σ| ≤ 700 (e^σ representable) and |ρ|·e^σ finite, else RangeError
-        tau[..., 6] = np.clip(tau[..., 6], -50.0, 50.0)
-        tau[..., :3] = np.clip(tau[..., :3], -1e250, 1e250)
+    if group in (Sim3, Sim2):  # |σ| ≤ 700 (e^σ representable) and |ρ|·e^σ finite, else RangeError
+        tau[..., -1] = np.clip(tau[..., -1], -50.0, 50.0)
+        tau[..., : group.point_dim] = np.clip(tau[..., : group.point_dim], -1e250, 1e250)
     x = group.exp(tau)
     x.validate(tol=1e-12)  # finite and in the group: orthonormal rotation blocks, exact last row
     p = rng.standard_normal((len(tau), group.point_dim))
@@ -43,7 +44,7 @@ def test_exp_and_jacobians_are_finite_for_every_finite_tangent(group, scale, rng
         assert np.isfinite(out).all()
     if group in ROTATION:
         d = group.point_dim
-        r = x.rotation().as_matrix() if group is Sim3 else x.as_matrix()[..., :d, :d]
+        r = x.rotation().as_matrix() if group in (Sim3, Sim2) else x.as_matrix()[..., :d, :d]
         assert _rotation_error(r, d) < 1e-14
         assert (np.linalg.norm(x.log()[..., ROTATION[group]], axis=-1) <= np.pi + 1e-15).all()
 
