@@ -1,12 +1,12 @@
 """Entries of ``H⁻¹`` on the pattern of a sparse Cholesky factor, without the dense inverse.
 
 With a fill-reducing permutation ``P`` and the factor ``P H Pᵀ = L Lᵀ``, the inverse
-``Z = (P H Pᵀ)⁻¹ = L⁻ᵀL⁻¹`` satisfies ``Lᵀ Z = L⁻¹``, an upper-triangular right-hand
-side whose diagonal is known. Split the columns of ``L`` into *supernodes*: runs ``J`` of
-consecutive columns sharing one row structure, ``J`` itself then the rows ``R`` below
-(dense blocks ``L_JJ`` lower triangular and ``L_RJ``). Reading ``Lᵀ Z = L⁻¹`` in the block
-rows ``J`` and the columns ``J`` and ``R`` gives the *Takahashi recursion*
-(Takahashi, Fagan, Chen 1973; Erisman and Tinney 1975)
+``Z = (P H Pᵀ)⁻¹ = L⁻ᵀL⁻¹`` satisfies ``Lᵀ Z = L⁻¹``, a lower-triangular right-hand
+side whose diagonal blocks are known (``L_JJ⁻¹``) and whose upper part is zero. Split the
+columns of ``L`` into *supernodes*: runs ``J`` of consecutive columns sharing one row
+structure, ``J`` itself then the rows ``R`` below (dense blocks ``L_JJ`` lower triangular
+and ``L_RJ``). Reading ``Lᵀ Z = L⁻¹`` in the block rows ``J`` and the columns ``J`` and
+``R`` gives the *Takahashi recursion* (Takahashi, Fagan, Chen 1973; Erisman and Tinney 1975)
 
     B     = L_RJ L_JJ⁻¹
     Z_RJ  = −Z_RR B
@@ -360,7 +360,8 @@ class SelectedInverse:
     -----
     An entry ``(i, j)`` of ``H⁻¹`` is available when ``(P i, P j)`` lies on the pattern of
     ``L + Lᵀ`` (true for every pair of coordinates of variables that share a factor, and
-    within one variable) and ``j`` (or ``i``) is among ``columns``.
+    within one variable) and the supernode of the earlier of the two was computed (always
+    when ``i`` and ``j`` are both among ``columns``).
     """
 
     def __init__(self, factor: CholeskyFactor, columns: ArrayLike | None = None) -> None:
@@ -376,6 +377,7 @@ class SelectedInverse:
         self.z = self._recursion(nodes.panels(factor.L.data))
 
     def _recursion(self, panels: FloatArray) -> FloatArray:
+        """``Z`` on the panels of the computed supernodes (module doc), one step per supernode."""
         nodes = self.nodes
         todo = np.flatnonzero(self.computed)
         z = np.zeros_like(panels)
