@@ -9,7 +9,7 @@ For each operation the median of ``--repeat`` runs is reported for manopt_lie
 and for SciPy (``Rotation.from_rotvec / as_rotvec / * / apply``), with the ratio
 ours/SciPy (goal: ≤ 1.5). A per-element Python loop over ``--loop-n`` elements
 shows what vectorization buys. A second table gives the throughput of every
-group's batched operations; a third compares Sim3, SE23 and a Bundle with SE3 at
+group's batched operations; a third compares Sim3, SE23, Sim2, S3 and a Bundle with SE3 at
 ``--new-n`` elements (default 10⁶), with ratios.
 """
 
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from manopt_lie import SE2, SE3, SE23, SO2, SO3, Bundle, Rn, Sim3
+from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, Rn, Sim2, Sim3
 from manopt_lie.bench.timing import median_time
 
 
@@ -88,9 +88,9 @@ def bench_all_groups(n: int, repeat: int, rng: np.random.Generator) -> list[dict
 
 
 def bench_new_groups(n: int, repeat: int, rng: np.random.Generator) -> list[dict[str, Any]]:
-    """Sim3, SE23 and a Bundle against SE3 at ``n`` elements: ns per element and the ratio to SE3."""
+    """Sim3, Sim2, SE23, S3 and a Bundle against SE3 at ``n`` elements: ns per element, ratio to SE3."""
     rows: list[dict[str, Any]] = []
-    for group in (SE3, Sim3, SE23, Bundle(SO3, Rn(3))):
+    for group in (SE3, Sim3, SE23, Sim2, S3, Bundle(SO3, Rn(3))):
         tau = 0.5 * rng.standard_normal((n, group.dim))
         x, y = group.exp(tau), group.random(rng, (n,))
         p = rng.standard_normal((n, group.point_dim))
@@ -160,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     new = bench_new_groups(args.new_n, max(1, args.repeat // 2), rng)
     print_table(
-        f"Sim3, SE23, Bundle(SO3, R3) vs SE3, {args.new_n:,} elements: ns per element and ratio to SE3",
+        f"Sim3, SE23, Sim2, S3, Bundle(SO3, R3) vs SE3, {args.new_n:,} elements: ns per element, ratio to SE3",
         new,
         {k: (".2f" if "/" in k else ".0f") for k in new[0] if k != "group"},
     )

@@ -1,21 +1,15 @@
-"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices (Sim3, SE23, Rn, bundles: ``.lie_extended``).
+"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices (Sim3, Sim2, SE23, S3, bundles: ``.lie_extended``).
 
-Elements are CasADi matrices in the numpy groups' matrix form (CONVENTIONS §2):
-rotations ``d×d``, rigid motions ``(d+1)×(d+1)`` homogeneous matrices whose
-last row is built from constants. Tangents are column vectors ``dim×1`` in the
-order ``(ρ, θ)``, translation first. Every operation accepts ``SX``, ``MX`` or
-``DM`` (numbers — numpy arrays and lists are converted to ``DM``) and returns
-the same kind, so an expression can be differentiated with
-``casadi.jacobian``/``casadi.hessian`` or compiled into a ``casadi.Function``.
+Elements are CasADi matrices in the numpy groups' matrix form (CONVENTIONS §2), constant
+entries built from constants; tangents are ``dim×1`` columns, translation first. Every
+operation accepts ``SX``, ``MX`` or ``DM`` (numbers become ``DM``) and returns the same kind,
+ready for ``casadi.jacobian``/``casadi.hessian`` or a ``casadi.Function``.
 
-The formulas are the numpy kernels' (``lie._so3`` …); every small-angle
-coefficient is evaluated from their data, ``lie._series`` (the one source of
-thresholds, series and closed forms), on the :data:`CASADI` backend, agreeing
-with numpy to round-off. The coefficients (``sinc`` … ``atan_ratio``,
-``atan2_ratio``) are public functions of the *squared* angle ``t = θ²``: the
-branch is selected on ``t`` and the closed form sees a safe argument (``1``)
-where the series is selected, so no branch divides by zero or differentiates
-``√t`` at ``t = 0``: values *and derivatives of every order* are finite at 0.
+The formulas are the numpy kernels'; every small-angle coefficient comes from their data,
+``lie._series`` (one source of thresholds, series and closed forms), on the :data:`CASADI`
+backend. The coefficients (``sinc`` … ``atan2_ratio``) are public functions of the *squared*
+angle ``t = θ²``; the closed form sees a safe argument (``1``) where the series is selected,
+so values *and derivatives of every order* are finite at 0.
 """
 
 from __future__ import annotations
@@ -487,14 +481,8 @@ _TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {SO2: SymSO2, SO3: SymSO3, S
 
 
 def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
-    """The symbolic twin of a numpy group class: ``symbolic(SO3) is SymSO3``; also Sim3, SE23 and
-    ``Bundle(...)`` of these and ``Rn(n)`` (:mod:`.lie_extended`, twins made once per class).
-
-    Raises
-    ------
-    TypeError
-        For any other group.
-    """
+    """The twin of a numpy group class (``symbolic(SO3) is SymSO3``): SO2, SO3, SE2, SE3, Sim3, Sim2,
+    SE23, S3 and bundles of these and ``Rn(n)`` (:mod:`.lie_extended`); ``TypeError`` otherwise."""
     from . import lie_extended as ext  # imports this module: load it on first use
 
     twin = _TWINS.get(group) or ext.TWINS.get(group) if isinstance(group, type) else None
@@ -505,7 +493,7 @@ def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
     if twin is None:
         name = getattr(group, "__name__", repr(group))
         raise TypeError(
-            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, SE23 "
-            "and Bundles of these and Rn(n)"
+            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, Sim2, "
+            "SE23, S3 and Bundles of these and Rn(n)"
         )
     return twin

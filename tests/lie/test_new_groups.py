@@ -7,6 +7,7 @@ import pytest
 from scipy.linalg import expm, logm
 
 from manopt_lie import (
+    S3,
     SE3,
     SE23,
     SO2,
@@ -134,7 +135,7 @@ def test_bundle_parts_and_identities(rng):
         Bundle(SO3, 3)
 
 
-@pytest.mark.parametrize("group", [Bundle(SO3, Rn(3)), Sim3, SE23], ids=group_id)
+@pytest.mark.parametrize("group", [Bundle(SO3, Rn(3)), Sim3, Sim2, SE23, S3], ids=group_id)
 def test_lie_group_manifold_optimizes_the_new_groups(group):
     """``LieGroupManifold(G)`` with a trust-region solve of the chordal cost ``½‖X − T‖_F²``."""
     from manopt_lie.manifolds.lie_group import LieGroupManifold
@@ -297,8 +298,6 @@ def test_left_group_exports():
 
 
 def test_s3_is_a_double_cover_of_so3(rng):
-    from manopt_lie import S3
-
     tau = 2.0 * rng.standard_normal((200, 3))
     q = S3.exp(tau)
     np.testing.assert_allclose(q.as_matrix(), SO3.exp(tau).as_matrix(), atol=1e-14)  # the same rotation
@@ -325,7 +324,7 @@ def test_s3_is_a_double_cover_of_so3(rng):
 
 
 def test_s3_validation():
-    from manopt_lie import S3, NotInGroupError
+    from manopt_lie import NotInGroupError
 
     with pytest.raises(NotInGroupError, match="not unit"):
         S3([0.0, 0.0, 0.0, 2.0])
