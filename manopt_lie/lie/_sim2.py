@@ -69,13 +69,14 @@ def exp(tau: FloatArray) -> FloatArray:
 
 
 def log(m: FloatArray) -> FloatArray:
-    """``(W⁻¹ t, θ, σ)``, ``θ = atan2`` of ``s·R``'s first column, ``σ = log s``."""
+    """``(W⁻¹ t, θ, σ)``, ``θ = atan2`` of ``s·R``'s first column, ``σ = log s``;
+    ``W⁻¹ = (A I − B J)/(A² + B²)`` with ``A² + B²`` formed as ``hypot(A, B)²`` (no overflow)."""
     theta = np.arctan2(m[..., 1, 0], m[..., 0, 0])
     sigma = np.log(scale(m))
     a, b = w_coefficients(sigma, theta)
     t = m[..., :2, 2]
-    d = a * a + b * b
-    rho = (a / d)[..., None] * t - (b / d)[..., None] * _matrix.skew2(t)
+    r = np.hypot(a, b)  # |A + iB|, without overflow for large σ
+    rho = (a / r / r)[..., None] * t - (b / r / r)[..., None] * _matrix.skew2(t)
     return np.concatenate([rho, theta[..., None], sigma[..., None]], axis=-1)
 
 
@@ -114,10 +115,10 @@ def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr = [[D, Y], [0, I]]`` → ``[[D⁻¹, −D⁻¹ Y], [0, I]]``, ``D = W(−σ, −θ)``, ``D⁻¹ = (A I − B J)/(A² + B²)``."""
     j = jr(tau)
     a, b = w_coefficients(-tau[..., 3], -tau[..., 2])
-    d = a * a + b * b
+    r = np.hypot(a, b)
     di = np.zeros(tau.shape[:-1] + (2, 2))
-    di[..., 0, 0] = di[..., 1, 1] = a / d
-    di[..., 0, 1], di[..., 1, 0] = b / d, -b / d
+    di[..., 0, 0] = di[..., 1, 1] = a / r / r
+    di[..., 0, 1], di[..., 1, 0] = b / r / r, -b / r / r
     out = np.zeros_like(j)
     out[..., :2, :2] = di
     out[..., :2, 2:] = -di @ j[..., :2, 2:]

@@ -89,10 +89,14 @@ class Sim3(LieGroup):
         r = _matrix.project_rotation(sr)
         big = np.abs(sr).max(axis=(-2, -1))
         d = sr.shape[-1]
-        s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / d * big
+        with np.errstate(over="ignore"):  # a scale beyond the float range is refused below
+            s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / d * big
         bad = ~(s > 0.0)
         if bad.any():
             raise NotInGroupError(f"from_matrix: matrix at batch index {_first(bad)} has no positive scale")
+        bad = ~np.isfinite(s)
+        if bad.any():
+            raise RangeError(f"from_matrix: the scale of the matrix at batch index {_first(bad)} overflows float64")
         return _matrix.assemble(r * s[..., None, None], t)
 
     @classmethod

@@ -192,3 +192,24 @@ def test_sim3_unrepresentable_results_are_refused():
     tau[1, 6] = -750.0
     with pytest.raises(RangeError, match=r"σ = -750"):
         Sim3.exp(tau)
+
+
+@pytest.mark.parametrize("group", [Sim3, Sim2, SE23, S3, Bundle(SO3, Rn(3))], ids=lambda g: g.__name__)
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_project_extreme_matrices_new_groups(group, scale, rng):
+    """The new groups' ``from_matrix(project=True)`` at entries ~1e±300: finite elements, finite Log."""
+    m = np.array(group.random(rng, (10,)).as_matrix())
+    d = 2 if group is Sim2 else 3
+    m[..., :d, :d] = scale * (m[..., :d, :d] + 0.1 * rng.standard_normal((10, d, d)))
+    x = group.from_matrix(m, project=True)
+    x.validate()
+    assert np.isfinite(x.data).all() and np.isfinite(x.log()).all()
+
+
+def test_sim3_projection_refuses_scales_beyond_the_float_range(rng):
+    from manopt_lie import RangeError
+
+    m = np.array(Sim3.identity((2,)).as_matrix())
+    m[1, :3, :3] = 1.7e308 * np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, -1.0]])  # s ≈ 1.6 × 1.7e308
+    with pytest.raises((RangeError, NotInGroupError), match=r"batch index \(1,\)"):
+        Sim3.from_matrix(m, project=True)
