@@ -1,6 +1,6 @@
 """Adapters running optional peer libraries on our problems, for the benchmarks.
 
-Each peer starts from our ``x0``, minimizes the same CONVENTIONS §8 cost as ours
+Each peer starts from our ``x0``, minimizes the same cost as ours (``docs/conventions.md``)
 and returns a :class:`PeerRun` holding our group elements, so that every final
 cost can be evaluated with our definition:
 
@@ -81,7 +81,8 @@ class PeerRun:
     time : float
         Seconds spent optimizing (building the peer's problem excluded).
     status : str
-        ``"converged"``, ``"max iterations"``, ``"max time"`` or ``"diverged"``.
+        ``"converged"``, ``"max_iterations"``, ``"max_time"`` or ``"diverged"`` (the
+        snake_case of :mod:`manopt_lie.bench.record`).
     converged : bool
         Whether the peer's own convergence test was met.
     history_cost, history_time : list of float
@@ -225,7 +226,7 @@ def _gtsam(
     new = optimizer.error()
     history_cost, history_time = [new], [time.perf_counter() - start]
     converged = new <= params.getErrorTol()
-    status = "converged" if converged else "max iterations"
+    status = "converged" if converged else "max_iterations"
     while not converged and optimizer.iterations() < max_iterations:
         current = new
         optimizer.iterate()
@@ -239,7 +240,7 @@ def _gtsam(
             status = "diverged"
             break
         elif history_time[-1] >= max_time:
-            status = "max time"
+            status = "max_time"
             break
     seconds = time.perf_counter() - start
     x = _from_gtsam(gtsam, graph.group, optimizer.values())
@@ -321,7 +322,7 @@ def _pymanopt_tr(
     start = time.perf_counter()
     result = optimizer.run(problem, initial_point=r0)
     seconds = time.perf_counter() - start
-    labels = {"grad norm": "converged", "max iterations": "max iterations", "max time": "max time"}
+    labels = {"grad norm": "converged", "max iterations": "max_iterations", "max time": "max_time"}
     status = next(
         (label for key, label in labels.items() if key in result.stopping_criterion), result.stopping_criterion
     )

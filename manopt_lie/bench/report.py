@@ -11,67 +11,85 @@ from typing import Any
 
 import numpy as np
 
-from .record import Run, best_costs, solved
+from .record import Run, agreement, best_costs, solved, status_words
 
-HEADER = ("instance", "n", "m", "cost", "optimizer", "iters", "time (s)", "final cost", "f*", "gap", "status")
+HEADER = ("instance", "start", "n", "m", "cost", "optimizer", "iters", "time (s)", "final cost", "f*", "gap",
+          "status")
+"""Every column a row may have; tables leave out those that are empty in every row
+(:func:`columns`): ``start`` for chordal starts, ``f*`` and ``gap`` without published optima."""
+_RIGHT = {"n", "m", "iters", "time (s)", "final cost", "f*"}
 
 
 def _number(value: float | None, spec: str) -> str:
     return "—" if value is None or not math.isfinite(value) else format(value, spec)
 
 
+def _row(r: Run, mark: str) -> list[str]:
+    return [
+        r.instance, "" if r.start == "chordal" else r.start, str(r.n), str(r.m), r.cost, r.optimizer, str(r.nit),
+        _number(r.time, ".3f"), _number(r.fun, ".7g"), "" if r.published is None else format(r.published, ".4g"),
+        agreement(r) or "", status_words(r.status) + mark,
+    ]  # fmt: skip
+
+
 def rows(runs: Sequence[Run]) -> list[list[str]]:
-    """One formatted row per run, in :data:`HEADER` order; the status is starred when
-    the run did not reach the best cost of its instance (to 1e-5, relative)."""
+    """One formatted row per run, in :data:`HEADER` order: the status in words
+    (:func:`~manopt_lie.bench.record.status_words`), starred when the run did not reach the
+    best cost of its instance (to 1e-5, relative); the gap as
+    :func:`~manopt_lie.bench.record.agreement` says it ("= f* to 4 digits")."""
     best = best_costs(list(runs))
-    out = []
-    for r in runs:
-        mark = "" if r.key in best and solved(r, best[r.key]) else " *"
-        out.append([
-            r.instance, str(r.n), str(r.m), r.cost, r.optimizer, str(r.nit), _number(r.time, ".3f"),
-            _number(r.fun, ".7g"), _number(r.published, ".4g"), _number(r.gap, ".1e"), r.status + mark,
-        ])  # fmt: skip
-    return out
+    return [_row(r, "" if r.key in best and solved(r, best[r.key]) else " *") for r in runs]
+
+
+def columns(table: Sequence[Sequence[str]]) -> list[int]:
+    """The indices of the :data:`HEADER` columns that are not empty in every row."""
+    return [k for k in range(len(HEADER)) if any(row[k] for row in table)]
 
 
 def print_table(runs: Sequence[Run], *, title: str | None = None, console: Any = None) -> None:
-    """The runs as a terminal table (rich)."""
+    """The runs as a terminal table (rich), without the columns that are empty in every row."""
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=title, title_justify="left")
-    for name in HEADER:
-        table.add_column(name, justify="left" if name in ("instance", "cost", "optimizer", "status") else "right")
+    table_rows = rows(runs)
+    keep = columns(table_rows)
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    for k in keep:
+        table.add_column(HEADER[k], justify="right" if HEADER[k] in _RIGHT else "left")
     previous = None
-    for r, row in zip(runs, rows(runs), strict=True):
-        if previous is not None and previous != r.key:
+    for r, row in zip(runs, table_rows, strict=True):
+        if previous is not None and previous != r.problem_key:
             table.add_section()
-        table.add_row(*row)
-        previous = r.key
+        table.add_row(*(row[k] or "—" for k in keep))
+        previous = r.problem_key
     if console is None:  # a pipe or file gets the whole table, not a wrapped 80 columns
         console = Console() if sys.stdout.isatty() else Console(width=200)
     console.print(table)
 
 
 def markdown_table(runs: Sequence[Run]) -> str:
-    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows(runs)]
+    table_rows = rows(runs)
+    keep = columns(table_rows)
+    lines = ["| " + " | ".join(HEADER[k] for k in keep) + " |", "|" + "---|" * len(keep)]
+    lines += ["| " + " | ".join(row[k] or "—" for k in keep) + " |" for row in table_rows]
     return "\n".join(lines)
 
 
 def summary(runs: Sequence[Run]) -> list[dict[str, Any]]:
-    """Per optimizer: problems solved (final cost within 1e-5 of the best of any run)
-    and the geometric mean over solved problems of its time over the fastest solver's."""
+    """Per optimizer: the problems (instance, cost, start) it attempted, those it solved (final
+    cost within 1e-5 of the best of any run on the instance and cost), and the geometric mean
+    over solved problems of its time over the fastest solver's."""
     best = best_costs(list(runs))
-    fastest: dict[tuple[str, str], float] = {}
+    fastest: dict[tuple[str, str, str], float] = {}
     for r in runs:
         if solved(r, best[r.key]):
-            fastest[r.key] = min(fastest.get(r.key, math.inf), r.time)
+            fastest[r.problem_key] = min(fastest.get(r.problem_key, math.inf), r.time)
     out = []
     for name in dict.fromkeys(r.optimizer for r in runs):
         mine = [r for r in runs if r.optimizer == name]
         ok = [r for r in mine if solved(r, best[r.key])]
-        ratios = [r.time / fastest[r.key] for r in ok if fastest[r.key] > 0]
+        ratios = [r.time / fastest[r.problem_key] for r in ok if fastest[r.problem_key] > 0]
         mean = float(np.exp(np.mean(np.log(ratios)))) if ratios else None
         out.append({"optimizer": name, "problems": len(mine), "solved": len(ok), "time_ratio_geomean": mean})
     return out
@@ -108,7 +126,7 @@ def markdown(
         "",
         f"Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']} on {env['platform']}.",
         "Stopping rule: " + ", ".join(f"{k} = {v}" for k, v in settings.to_json().items()) + ".",
-        "Times are solve times (the chordal initialization is shared and excluded), medians over the repeats; "
+        "Times are solve times (each start's initialization is shared and excluded), medians over the repeats; "
         "`*` marks a run that did not reach the best final cost of its instance to 1e-5 relative.",
         "",
         markdown_table(runs),

@@ -1,13 +1,19 @@
-"""Run a suite of catalogue instances × optimizers (ours, optional peers, the IPOPT
+"""Run a suite of catalogue instances × starts × optimizers (ours, optional peers, the IPOPT
 reference) and collect one :class:`~manopt_lie.bench.record.Run` per combination.
 
-Every run on an instance starts from the same chordal initialization (timed once,
-``init_time``) and every final cost is evaluated with CONVENTIONS §8, so rows are
+Every run on an instance starts from the same initialization — chordal by default, or
+odometry, or random from each of several seeds (:func:`plan`) — and every final cost is
+evaluated with the project's cost definitions (``docs/conventions.md``), so rows are
 comparable across libraries. Our optimizers come from the registry
 (:data:`manopt_lie.optim.OPTIMIZERS`) and share one
 :class:`~manopt_lie.optim.StoppingCriteria`; times are medians over ``repeat`` solves
 (:func:`~manopt_lie.bench.timing.median_time`), each on a freshly built problem (so the
 sparse symbolic analysis is part of the time).
+
+A task is self-contained (a catalogue :class:`~manopt_lie.problems.catalogue.Entry`, which
+pickles, and names): :func:`run_task` builds the problem where it runs, so that
+:mod:`.distributed` can ship tasks to other processes and machines; problems themselves
+(locks, per-thread state) never travel.
 """
 
 from __future__ import annotations
@@ -21,13 +27,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from manopt_lie.optim import OPTIMIZERS, Status, StoppingCriteria, get_optimizer
 from manopt_lie.problems.catalogue import CatalogueError, Entry, Loaded
 from manopt_lie.problems.pose_graph import PoseGraph
 from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 from . import peers as peer_adapters
-from .record import Run, finite
+from .record import Run, finite, status_name
 from .timing import median_time
 
 REFERENCE = "ipopt"
@@ -54,51 +62,80 @@ class Settings:
 
 @dataclass(frozen=True)
 class Task:
-    """One planned run."""
+    """One planned run: an entry, a cost, a solver and a start (``seed`` for ``init="random"``)."""
 
     entry: Entry
     cost: str
     solver: str  # an optimizer, a peer, or "ipopt"
+    init: str = "chordal"
+    seed: int | None = None
+
+    @property
+    def start(self) -> str:
+        return self.init if self.seed is None else f"{self.init}:{self.seed}"
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        """``(instance, cost, start, solver)``, as :attr:`Run.task_key <manopt_lie.bench.record.Run.task_key>`."""
+        return self.entry.name, self.cost, self.start, self.solver
 
     @property
     def label(self) -> str:
-        return f"{self.entry.name} · {self.cost} · {self.solver}"
+        start = "" if self.start == "chordal" else f" · {self.start}"
+        return f"{self.entry.name} · {self.cost} · {self.solver}{start}"
+
+
+@dataclass
+class Outcome:
+    """A finished task: its run, the solution (``None`` when it ran in another process) and
+    what plots need of it (the solution's positions and landmark positions, or ``None``)."""
+
+    task: Task
+    run: Run
+    x: Any = None
+    positions: Any = None
+    landmarks: Any = None
 
 
 @dataclass
 class SuiteResult:
-    """The runs, and the points behind them (for trajectory plots and g2o output)."""
+    """The runs in plan order, and the outcomes and loaded instances of this process."""
 
     runs: list[Run] = field(default_factory=list)
+    outcomes: dict[tuple[str, str, str, str], Outcome] = field(default_factory=dict)
     loaded: dict[str, Loaded] = field(default_factory=dict)
-    initial: dict[str, Any] = field(default_factory=dict)
-    init_time: dict[str, float] = field(default_factory=dict)
-    solutions: dict[tuple[str, str, str], Any] = field(default_factory=dict)
 
 
 def plan(
-    entries: Sequence[Entry], optimizers: Sequence[str], *, peers: Sequence[str] = (), reference: bool = False
-) -> list[Task]:
-    """The runs of a suite, in order; peers only where they apply (the kind and cost each solves)."""
+    entries: Sequence[Entry], optimizers: Sequence[str], *, peers: Sequence[str] = (), reference: bool = False,
+    init: str = "chordal", seeds: Sequence[int] = (),
+) -> list[Task]:  # fmt: skip
+    """The runs of a suite, in order: per entry, per start (``init``; for ``"random"`` each of
+    ``seeds``, default ``(0,)``), per cost, per solver; peers only where they apply (the kind
+    and cost each solves)."""
     for name in optimizers:
         get_optimizer(name)  # unknown: ValueError listing the choices
     for name in peers:
         if name not in peer_adapters.PEERS:
             raise ValueError(f"unknown peer {name!r}; choose from {', '.join(peer_adapters.PEERS)}")
+    if seeds and init != "random":
+        raise ValueError(f"seeds apply to random initializations only, not to {init!r}")
+    starts: list[int | None] = list(seeds or (0,)) if init == "random" else [None]
     tasks = []
     for entry in entries:
-        for cost in entry.costs or ():
-            solvers = [*optimizers, *(p for p in peers if peer_adapters.applies(p, entry.problem, cost))]
-            if reference and entry.problem in REFERENCE_KINDS:
-                solvers.append(REFERENCE)
-            tasks += [Task(entry, cost, s) for s in solvers]
+        for seed in starts:
+            for cost in entry.costs or ():
+                solvers = [*optimizers, *(p for p in peers if peer_adapters.applies(p, entry.problem, cost))]
+                if reference and entry.problem in REFERENCE_KINDS:
+                    solvers.append(REFERENCE)
+                tasks += [Task(entry, cost, s, init, seed) for s in solvers]
     return tasks
 
 
-def initialize(loaded: Loaded) -> tuple[float, Any]:
-    """The chordal initialization and its time."""
+def initialize(loaded: Loaded, init: str = "chordal", seed: int | None = None) -> tuple[float, Any]:
+    """The initialization by name (:meth:`manopt_lie.problems.graph.Graph.initialize`) and its time."""
     start = time.perf_counter()
-    x0 = loaded.spec.initialize("chordal")
+    x0 = loaded.spec.initialize(init, seed=seed)
     return time.perf_counter() - start, x0
 
 
@@ -112,9 +149,10 @@ def _ours(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run,
         return result
 
     seconds, result = median_time(solve, settings.repeat)
-    run = _record(task, loaded, seconds, result.nit, result.fun, result.status.name.lower().replace("_", " "))
+    run = _record(task, loaded, seconds, result.nit, result.fun, result.status.name.lower())
     run.converged, run.grad_norm = result.status.converged, result.grad_norm
     run.history_cost, run.history_time = result.history.cost.tolist(), result.history.time.tolist()
+    run.history_grad_norm = result.history.grad_norm.tolist()
     return run, result.x
 
 
@@ -126,7 +164,7 @@ def _peer(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run,
             grad_rtol=s.grad_rtol, rel_cost_decrease=s.rel_cost_decrease or 1e-5,
         )
         for _ in range(settings.repeat)
-    ]
+    ]  # fmt: skip
     seconds = statistics.median(o.time for o in out)  # the peers time themselves, building excluded
     last = out[-1]
     run = _record(task, loaded, seconds, last.nit, loaded.spec.cost(last.x, task.cost), last.status)
@@ -148,8 +186,8 @@ def _record(task: Task, loaded: Loaded, seconds: float, nit: int, fun: float, st
     spec = loaded.spec
     return Run(
         instance=task.entry.name, problem=task.entry.problem, cost=task.cost, optimizer=task.solver,
-        n=spec.n, m=spec.m, nit=nit, time=seconds, init_time=math.nan, fun=fun, status=status,
-        converged=False, published=task.entry.published.get(task.cost),
+        n=spec.n, m=spec.m, nit=nit, time=seconds, init_time=math.nan, fun=fun, status=status_name(status),
+        converged=False, published=task.entry.published.get(task.cost), init=task.init, seed=task.seed,
     )  # fmt: skip
 
 
@@ -159,32 +197,101 @@ def _runner(solver: str) -> Callable[[Task, Loaded, Any, Settings], tuple[Run, A
     return _reference if solver == REFERENCE else _peer
 
 
+class Cache:
+    """Instances and starts already built in this process, shared by the tasks of one instance."""
+
+    def __init__(self) -> None:
+        self.loaded: dict[str, Loaded] = {}
+        self.starts: dict[tuple[str, str], tuple[float, Any]] = {}
+
+    def get(self, task: Task, data_dir: Path | str | None) -> tuple[Loaded, float, Any]:
+        name = task.entry.name
+        if name not in self.loaded:
+            self.loaded[name] = task.entry.load(data_dir)
+        if (name, task.start) not in self.starts:
+            self.starts[name, task.start] = initialize(self.loaded[name], task.init, task.seed)
+        return self.loaded[name], *self.starts[name, task.start]
+
+    def drop(self, name: str) -> None:
+        self.loaded.pop(name, None)
+        for key in [k for k in self.starts if k[0] == name]:
+            del self.starts[key]
+
+
+def run_task(task: Task, settings: Settings, data_dir: Path | str | None = None, cache: Cache | None = None) -> Outcome:
+    """Build the task's problem (or take it from ``cache``), start it, solve it, record it.
+
+    Raises
+    ------
+    FileNotFoundError
+        When the instance's data file is missing.
+    CatalogueError
+        For an instance too large for memory (naming it).
+    """
+    cache = cache if cache is not None else Cache()
+    try:
+        loaded, init_time, x0 = cache.get(task, data_dir)
+        run, x = _runner(task.solver)(task, loaded, x0, settings)
+    except MemoryError:
+        cache.drop(task.entry.name)  # let the memory go before saying so
+        raise CatalogueError(f"instance {task.entry.name!r} ({task.label}): out of memory") from None
+    run.init_time = init_time
+    positions = loaded.spec.positions(x)
+    landmark_positions = getattr(loaded.spec, "landmark_positions", None)
+    landmarks = None if landmark_positions is None else np.asarray(landmark_positions(x))
+    return Outcome(task, run, x, positions, landmarks)
+
+
 def execute(
     tasks: Sequence[Task],
     *,
     settings: Settings | None = None,
     data_dir: Path | str | None = None,
     on_task: Callable[[Task], None] | None = None,
+    on_result: Callable[[Outcome], None] | None = None,
+    done: Sequence[Run] = (),
+    scheduler: str | None = None,
+    workers: int | None = None,
 ) -> SuiteResult:
-    """Run ``tasks`` (from :func:`plan`). ``on_task`` is called before each one (progress
-    display). An instance whose data file is missing raises ``FileNotFoundError``; one too
-    large for memory raises :class:`~manopt_lie.problems.catalogue.CatalogueError` naming it."""
+    """Run ``tasks`` (from :func:`plan`), except those whose runs are in ``done`` (a resumed
+    campaign's; they are reported as they are).
+
+    Parameters
+    ----------
+    on_task, on_result : callables, optional
+        Called before each task (sequential runs only) and with each :class:`Outcome` as it
+        arrives (progress, the results store).
+    scheduler : None, ``"dask"`` or a Dask scheduler address (``"tcp://host:8786"``)
+        ``None`` runs the tasks one after another in this process; otherwise
+        :func:`~manopt_lie.bench.distributed.execute_dask` runs them on a
+        ``dask.distributed`` cluster (``"dask"``: a local one of ``workers`` processes).
+        The final costs are the same either way; the times are each worker's.
+
+    Raises
+    ------
+    FileNotFoundError, CatalogueError
+        As :func:`run_task`.
+    """
     settings = settings or Settings()
+    finished = {run.task_key: run for run in done}
+    todo = [task for task in tasks if task.key not in finished]
     out = SuiteResult()
-    for task in tasks:
-        if on_task is not None:
-            on_task(task)
-        name = task.entry.name
-        try:
-            if name not in out.loaded:
-                out.loaded[name] = task.entry.load(data_dir)
-                out.init_time[name], out.initial[name] = initialize(out.loaded[name])
-            loaded, x0 = out.loaded[name], out.initial[name]
-            run, x = _runner(task.solver)(task, loaded, x0, settings)
-        except MemoryError:
-            out.loaded.pop(name, None)  # let the memory go before saying so
-            raise CatalogueError(f"instance {name!r} ({task.label}): out of memory") from None
-        run.init_time = out.init_time[name]
-        out.runs.append(run)
-        out.solutions[name, task.cost, task.solver] = x
+    if scheduler is None:
+        cache = Cache()
+        for task in todo:
+            if on_task is not None:
+                on_task(task)
+            outcome = run_task(task, settings, data_dir, cache)
+            out.outcomes[task.key] = outcome
+            if on_result is not None:
+                on_result(outcome)
+        out.loaded = cache.loaded
+    else:
+        from .distributed import execute_dask  # dask is imported only when asked for
+
+        for outcome in execute_dask(todo, settings, data_dir, scheduler=scheduler, workers=workers,
+                                    on_result=on_result):  # fmt: skip
+            out.outcomes[outcome.task.key] = outcome
+    runs = {key: o.run for key, o in out.outcomes.items()} | finished
+    out.runs = [runs[task.key] for task in tasks if task.key in runs]
     return out

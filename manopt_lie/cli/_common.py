@@ -10,11 +10,13 @@ import json
 import math
 import os
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 from manopt_lie.atomic import atomic_write, check_writable
+from manopt_lie.bench.figures import figure_format
 from manopt_lie.optim import StoppingCriteria
 
 EXIT_OK = 0
@@ -106,7 +108,8 @@ def add_output(parser: argparse.ArgumentParser) -> None:
 
 
 def progress(quiet: bool) -> Any:
-    """A rich progress display on stderr, or ``None`` when quiet or not a terminal."""
+    """A rich progress display on stderr, or ``None`` when quiet or not a terminal (then
+    :class:`Lines` says what happens)."""
     if quiet or not sys.stderr.isatty():
         return None
     from rich.console import Console
@@ -114,6 +117,58 @@ def progress(quiet: bool) -> Any:
 
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                     console=Console(stderr=True), transient=True)  # fmt: skip
+
+
+class Lines:
+    """Progress as plain lines on stderr, for logs (stderr not a terminal): one line per
+    finished run, but at most one every ``interval`` seconds (the count says how far it got),
+    and always the last one and every failed one::
+
+        manopt-lie bench: [3/12] cube-8 · chordal · lm: cost 400.6794 in 0.046 s (gradient norm)
+    """
+
+    def __init__(self, command: str, total: int, *, interval: float = 1.0, stream: Any = None) -> None:
+        self.command, self.total, self.interval = command, total, interval
+        self.stream = stream if stream is not None else sys.stderr
+        self.done = 0
+        self.last = -math.inf
+
+    def say(self, text: str) -> None:
+        print(f"manopt-lie {self.command}: {text}", file=self.stream, flush=True)
+        self.last = time.monotonic()
+
+    def finished(self, label: str, text: str, *, important: bool = False) -> None:
+        """One more run finished."""
+        self.done += 1
+        now = time.monotonic()
+        if important or self.done == self.total or now - self.last >= self.interval:
+            self.say(f"[{self.done}/{self.total}] {label}: {text}")
+
+
+def seeds(text: str) -> list[int]:
+    """An argument type: seeds as ``0-9``, ``0,3,7`` or a mix (``0-4,10``)."""
+    out: list[int] = []
+    for part in (p.strip() for p in text.split(",")):
+        lo, dash, hi = part.partition("-")
+        try:
+            first, last = int(lo), int(hi) if dash else int(lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not seeds: {text!r} (e.g. 0-9 or 0,3,7)") from None
+        if first < 0 or last < first:
+            raise argparse.ArgumentTypeError(f"not a range of non-negative seeds: {part!r}")
+        out += [k for k in range(first, last + 1) if k not in out]
+    return out
+
+
+def figure_path(path: Path | None, what: str, *, inputs: Sequence[Path] = ()) -> Path | None:
+    """:func:`output_path` for a figure, whose extension must name its format (``.png``,
+    ``.pdf`` or ``.svg``): checked before any work."""
+    if path is not None:
+        try:
+            figure_format(path)
+        except ValueError as error:
+            raise UsageError(f"{what}: {error}") from None
+    return output_path(path, what, inputs=inputs)
 
 
 def json_safe(value: Any) -> Any:

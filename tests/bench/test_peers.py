@@ -142,7 +142,7 @@ def test_gtsam_iteration_cap(graphs):
     pytest.importorskip("gtsam")
     graph = graphs[SE3]
     run = peers.solve("gtsam-lm", graph, graph.chordal_initialization(), max_iterations=1, rel_cost_decrease=1e-15)
-    assert (run.nit, run.status, run.converged, len(run.history_cost)) == (1, "max iterations", False, 2)
+    assert (run.nit, run.status, run.converged, len(run.history_cost)) == (1, "max_iterations", False, 2)
 
 
 # ---- pymanopt ----------------------------------------------------------------------------
@@ -170,4 +170,4 @@ def test_pymanopt_iteration_cap(rotations):
     pytest.importorskip("pymanopt")
     spec = rotations[3]
     run = peers.solve("pymanopt-tr", spec, spec.chordal_initialization(), max_iterations=2, grad_rtol=1e-15)
-    assert (run.nit, run.status, run.converged, len(run.history_cost)) == (2, "max iterations", False, 3)
+    assert (run.nit, run.status, run.converged, len(run.history_cost)) == (2, "max_iterations", False, 3)
