@@ -45,7 +45,7 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Key = int | tuple[str, int]
 
-SOLVE_COLUMNS = 24
+SOLVE_COLUMNS = 16
 """``method="auto"`` uses solves up to this many requested tangent coordinates (the
 coordinates of the variables and of the pairs' second members), selected inversion above."""
 
