@@ -19,7 +19,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from . import _common, bench, solve
+from . import _common, bench, eval, solve
 
 __all__ = ["build_parser", "main"]
 
@@ -33,10 +33,11 @@ def build_parser() -> _common.Parser:
         "benchmarks.",
     )
     parser.add_argument("--version", action="version", version=f"manopt-lie {__version__}")
-    commands = parser.add_subparsers(dest="command", required=True, metavar="{demo,solve,bench}",
+    commands = parser.add_subparsers(dest="command", required=True, metavar="{demo,solve,bench,eval}",
                                      parser_class=_common.Parser)  # fmt: skip
     bench.add_parsers(commands)
     solve.add_parser(commands)
+    eval.add_parser(commands)
     return parser
 
 
