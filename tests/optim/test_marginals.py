@@ -92,7 +92,20 @@ def test_fixed_variables_are_reported_and_zero(pose_graph):
     assert not cov[0].any() and not cov.cross(0, 3).any() and cov[3].any()
 
 
-def test_poses_and_landmarks_against_the_dense_inverse():
+def test_solves_in_chunks(pose_graph, monkeypatch):
+    import manopt_lie.optim.marginals as marginals
+
+    _, problem, x, Z = pose_graph
+    monkeypatch.setattr(marginals, "_CHUNK_BYTES", 1)  # one column variable per solve
+    cov = marginal_covariances(problem, x, [1, 4, 7], pairs=[(2, 7), (7, 1)], method="solve")
+    for v in (1, 4, 7):
+        assert relative(cov[v], block(Z, problem, v, v)) < 1e-10
+    for u, v in [(2, 7), (7, 1)]:
+        assert relative(cov.cross(u, v), block(Z, problem, u, v)) < 1e-10
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_poses_and_landmarks_against_the_dense_inverse(backend):
     rng = np.random.default_rng(7)
     manifold, factors, x0, _, _ = landmark_world(rng)
     problem = LeastSquaresProblem(manifold, factors, fixed={"poses": [0]})
@@ -104,7 +117,8 @@ def test_poses_and_landmarks_against_the_dense_inverse():
     links = observed[observed[:, 0] > 0][:4]
     for method in METHODS:
         cov = marginal_covariances(problem, x, {"landmarks": landmarks, "poses": [3]},
-                                   pairs={("poses", "landmarks"): np.r_[links, [[9, 1]]]}, method=method)  # fmt: skip
+                                   pairs={("poses", "landmarks"): np.r_[links, [[9, 1]]]}, method=method,
+                                   backend=backend)  # fmt: skip
         assert cov.indices("landmarks").tolist() == landmarks and cov.stacked("landmarks").shape == (3, 2, 2)
         expected = np.stack([block(Z, problem, 10 + i, 10 + i) for i in landmarks])
         assert relative(cov.stacked("landmarks"), expected) < 1e-10
