@@ -229,8 +229,8 @@ def _landmark_graph(
         s_vals = np.concatenate(tags[TAG[SE3, PARAM]].take_values())
         table = elements(SE3, s_vals[np.argsort(s_ids[:, 0], kind="stable")])
         offset_ids = o_ids[:, 2]
-        used = table[np.searchsorted(params.ids, offset_ids)]
-        offsets = None if is_identity(used).all() else used
+        used = np.searchsorted(params.ids, offset_ids)
+        offsets = None if is_identity(table)[used].all() else table[used]
         if means is not None:
             means, prior_information = _fold(means, prior_information, table[np.searchsorted(params.ids, p_ids[:, 1])],
                                              p_lines, filename)  # fmt: skip

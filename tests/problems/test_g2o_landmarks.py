@@ -52,8 +52,8 @@ def pr3(i: int, p: int = 0, pose: str = "1 2 3 0 0 0 1", info: str = INFO3) -> s
     return f"EDGE_SE3_PRIOR {i} {p} {pose} {info}"
 
 
-GRAPH2 = text(v2(0), v2(1, "1 0 0.5"), vxy(7, "2 1"), e2(0, 1), exy(0, 7), exy(1, 7, "0.5 0.5"), pr2(0))
-GRAPH3 = text(par(0), v3(0), v3(1), vxyz(7), e3(0, 1), exyz(0, 7), exyz(1, 7), pr3(0))
+GRAPH2 = text(v2(0), v2(1, "1 0 0.5"), vxy(7, "1 0.5"), e2(0, 1), exy(0, 7), exy(1, 7, "0.5 0.5"), pr2(0))
+GRAPH3 = text(par(0), v3(0), v3(1), vxyz(7, "1 0.5 -2"), e3(0, 1), exyz(0, 7), exyz(1, 7), pr3(0))
 
 
 def assert_round_trip(graph: LandmarkGraph, estimates=None) -> str:
@@ -559,3 +559,169 @@ def test_a_3d_prior_on_an_offset_sensor_is_folded_into_an_equivalent_prior():
     prior_line = next(line for line in written.splitlines() if line.startswith("EDGE_SE3_PRIOR"))
     assert prior_line.split()[2] == "0"  # a new identity parameter (2 is the sensor's)
     assert "PARAMS_SE3OFFSET 0 0.0 0.0 0.0 0.0 0.0 0.0 1.0" in written
+
+
+# ---- lint ------------------------------------------------------------------------------
+
+LINT2 = text(
+    v2(0), v2(1, "1 0 0"), v2(2, "2 0 0"), v2(3, "0 5 0"), v2(4, "50 50 0"),
+    vxy(10, "1 1"), vxy(11, "0 -1"), vxy(12, "100 -100"), vxy(13, "0 3"), vxy(14, "50 51"),
+    e2(0, 1, "1 0 0"),
+    exy(0, 10, "1 1", "1 0 -1"),  # indefinite
+    exy(1, 10, "0 1"),
+    exy(0, 10, "1 1"),  # a duplicate of the first
+    exy(0, 11, "0 -1"),
+    exy(0, 13, "0 3"),
+    exy(3, 13, "0 -2"),  # pose 3 is linked to the others through landmark 13
+    exy(4, 14, "0 1", "1e308 1e308 1e308"),  # beyond double precision (and singular)
+)  # fmt: skip
+
+
+def test_lint_reports_the_landmarks_observations_and_priors():
+    graph = g2o.loads(LINT2 + pr2(1, "1 0 0", "1 0 0 -1 0 1"), name="quirks")
+    report = g2o.lint(graph)
+    assert (report.n, report.m, report.n_landmarks, report.n_observations, report.n_priors) == (5, 1, 5, 7, 1)
+    np.testing.assert_array_equal(report.unseen, [12])
+    np.testing.assert_array_equal(report.seen_once, [11, 14])
+    np.testing.assert_array_equal(report.out_of_view, [12])
+    assert report.view_range == 3.0  # the largest measured range, ‖(0, 3)‖
+    np.testing.assert_array_equal(report.duplicate_observations, [2])
+    np.testing.assert_array_equal(report.duplicate_observation_ids, [[0, 10]])
+    np.testing.assert_array_equal(report.indefinite_observations, [0, 6])
+    np.testing.assert_array_equal(report.indefinite_observation_ids, [[0, 10], [4, 14]])
+    assert report.observation_min_eigenvalues[0] == pytest.approx(-1.0)
+    np.testing.assert_array_equal(report.overflow_observations, [6])
+    np.testing.assert_array_equal(report.overflow_observation_ids, [[4, 14]])
+    np.testing.assert_array_equal(report.indefinite_priors, [0])
+    np.testing.assert_array_equal(report.indefinite_prior_ids, [1])
+    np.testing.assert_allclose(report.prior_min_eigenvalues, [-1.0])
+    np.testing.assert_array_equal(report.isolated, [2])  # poses without any measurement
+    # The prior fixes the gauge: what is linked to pose 1 is determined, pose 3 through landmark 13.
+    np.testing.assert_array_equal(report.unreachable, [2, 4, 12, 14])
+    assert report.indefinite.size == 0 and report.duplicates.size == 0 and not report.ok
+    lines = str(report).splitlines()
+    assert lines[0] == "quirks: 5 poses, 5 landmarks, 1 edge, 7 observations, 1 prior"
+    for expected in [
+        "  1 observation information matrix beyond double precision (eigenvalues overflow): 4→14",
+        "  2 observation information matrices not positive definite: 0→10 (λmin -1), 4→14 (λmin 0)",
+        "  1 prior information matrix not positive definite: on 1 (λmin -1)",
+        "  1 duplicate observation: 0→10",
+        "  1 landmark never seen: 12",
+        "  2 landmarks seen only once (fewer than twice): 11, 14",
+        "  1 landmark out of view (farther than the largest measured range, 3, from every pose): 12",
+        "  1 pose without measurements: 2",
+        "  not connected: 4 vertices unreachable from what fixes the gauge (FIX-ed poses, priors, else pose 0): "
+        "2, 4, 12, 14",
+    ]:
+        assert expected in lines, (expected, lines)
+
+
+def test_lint_links_to_the_gauge_as_the_problem_fixes_it():
+    # No prior, no FIX: the anchor pose 0.
+    np.testing.assert_array_equal(g2o.lint(g2o.loads(LINT2)).unreachable, [2, 4, 12, 14])
+    # FIX 4: only what is linked to pose 4 is determined.
+    report = g2o.lint(g2o.loads(LINT2 + "FIX 4\n"))
+    np.testing.assert_array_equal(report.unreachable, [0, 1, 2, 3, 10, 11, 12, 13])
+    assert report.anchor == 4
+
+
+def test_lint_of_in_memory_quirks_and_of_clean_worlds():
+    graph = g2o.loads(GRAPH2, name="clean")
+    assert str(g2o.lint(graph)) == "clean: 2 poses, 1 landmark, 1 edge, 2 observations, 1 prior: ok"
+    skew = graph.point_information.copy()
+    skew[1, 0, 1] += 1.0
+    prior_skew = graph.prior_information.copy()
+    prior_skew[0, 2, 0] += 1.0
+    report = g2o.lint(dataclasses.replace(graph, point_information=skew, prior_information=prior_skew))
+    np.testing.assert_array_equal(report.asymmetric_observations, [1])
+    np.testing.assert_array_equal(report.asymmetric_priors, [0])
+    assert "  1 observation information matrix not symmetric: observations 1" in str(report).splitlines()
+    assert "  1 prior information matrix not symmetric: priors 0" in str(report).splitlines()
+    for d in (2, 3):
+        world = synthetic.landmark_world(60, 20, d=d, seed=1, sensor_range=8.0)
+        poses = dataclasses.replace(world.graph.poses, poses=world.truth["poses"])
+        report = g2o.lint(dataclasses.replace(world.graph, landmarks=world.truth["landmarks"], poses=poses))
+        assert report.ok, str(report)
+        assert report.view_range is not None and report.out_of_view.size == 0
+    # Without estimates the view is not checked.
+    assert g2o.lint(world.graph).view_range is None
+
+
+def test_lint_of_a_landmark_file_counts_its_normalized_quaternions(tmp_path):
+    source = GRAPH3.replace(par(0), par(0, "0 0 0 0 0 0 1.000001")).replace(pr3(0), pr3(0, pose="1 2 3 0 0 0 0.99999"))
+    path = tmp_path / "printed.g2o"
+    path.write_text(source)
+    report = g2o.lint(path)
+    assert report.renormalized == 2 and report.quaternion_error == pytest.approx(1e-5, rel=1e-6)
+    assert report.ok and "2 quaternions normalized" in str(report)
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        text(vxy(1, "0 0")),  # no pose at all
+        text(pr2(0)),  # a prior alone
+        text(v2(0, "1e308 -1e308 0"), vxy(1, "-1e308 1e308"), exy(0, 1, "1e308 1e308", "1e308 0 1e308")),
+        text(
+            par(0, "1e308 1e308 1e308 0 0 0 1"),
+            v3(0, "-1e308 0 0 0 0 0 1"),
+            vxyz(1, "1e308 1e308 1e308"),
+            exyz(0, 1, 0, "1e308 -1e308 1e308"),
+        ),
+    ],
+    ids=["no poses", "prior only", "huge 2-D", "huge 3-D"],
+)
+def test_lint_never_raises_on_odd_landmark_graphs(source):
+    report = g2o.lint(g2o.loads(source))  # RuntimeWarnings are errors in the suite: none either
+    assert str(report).startswith("<string>: ")
+
+
+# ---- GTSAM's reader, an optional peer ----------------------------------------------------
+
+
+def test_gtsam_reads_what_it_supports_of_our_landmark_files(tmp_path):
+    """GTSAM 4.3's ``readG2o`` reads poses, landmarks (as ``L(id)``) and pose–pose edges; in 3-D
+    ``EDGE_SE3_TRACKXYZ`` as a bearing–range factor, refusing a missing or non-identity
+    ``PARAMS_SE3OFFSET`` (as we refuse the missing one); ``EDGE_SE2_XY`` and the priors it skips."""
+    gtsam = pytest.importorskip("gtsam")
+    for d in (2, 3):
+        world = synthetic.landmark_world(30, 10, d=d, seed=2, sensor_range=8.0, prior=True)
+        graph, truth = world.graph, world.truth
+        path = tmp_path / f"world{d}.g2o"
+        g2o.write(path, graph, truth)
+        back = g2o.read(path)
+        factors, values = gtsam.readG2o(str(path), d == 3)
+        landmark = [gtsam.symbol("l", int(i)) for i in back.landmark_ids]
+        points = np.array([values.atPoint2(k) if d == 2 else values.atPoint3(k) for k in landmark])
+        np.testing.assert_array_equal(points, back.landmarks)
+        poses = back.poses.poses.as_matrix()
+        for i, pose_id in enumerate(back.poses.ids):
+            theirs = values.atPose2(int(pose_id)).matrix() if d == 2 else values.atPose3(int(pose_id)).matrix()
+            np.testing.assert_allclose(theirs, poses[i], rtol=0, atol=1e-12)
+        kinds = [type(factors.at(i)).__name__ for i in range(factors.size())]
+        between = f"BetweenFactorPose{d}"
+        assert kinds.count(between) == back.poses.m
+        if d == 2:
+            assert len(kinds) == back.poses.m  # EDGE_SE2_XY and EDGE_PRIOR_SE2 are skipped
+        else:
+            assert kinds.count("BearingRangeFactor3D") == len(back.observations) and len(kinds) == back.m - 1
+            measured = [factors.at(i).measured() for i in range(factors.size()) if kinds[i] != between]
+            z = np.array([m.bearing().point3() * m.range() for m in measured])
+            np.testing.assert_allclose(z, back.points, rtol=1e-12, atol=1e-12)
+        # The pose–pose part: GTSAM's error is our geodesic cost (CONVENTIONS §8).
+        only_between = gtsam.NonlinearFactorGraph()
+        for i in range(factors.size()):
+            if kinds[i] == between:
+                only_between.add(factors.at(i))
+        assert only_between.error(values) == pytest.approx(back.poses.cost(back.poses.poses), rel=1e-9)
+    missing = tmp_path / "missing.g2o"
+    missing.write_text(text(v3(0), vxyz(5), exyz(0, 5, 0)))
+    with pytest.raises(g2o.ParseError, match="names parameter 0"):
+        g2o.read(missing)
+    with pytest.raises(ValueError, match="PARAMS_SE3OFFSET"):
+        gtsam.readG2o(str(missing), True)
+    offset = tmp_path / "offset.g2o"
+    offset.write_text(text(par(0, "0.5 0 0 0 0 0 1"), v3(0), vxyz(5), exyz(0, 5, 0)))
+    assert g2o.read(offset).sensor_offsets is not None
+    with pytest.raises(ValueError, match="identity PARAMS_SE3OFFSET"):
+        gtsam.readG2o(str(offset), True)

@@ -392,3 +392,43 @@ def test_se3_elements_are_built_per_chunk_as_a_whole_file_would(monkeypatch: pyt
     np.testing.assert_array_equal(chunked.measurements.as_matrix(), whole.measurements.as_matrix())
     np.testing.assert_array_equal(chunked.information, whole.information)
     np.testing.assert_array_equal(chunked.edge_lines, whole.edge_lines)
+
+
+# ---- landmark files stream alike ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_reading_a_landmark_file_keeps_memory_near_its_size(tmp_path: Path, d: int):
+    world = synthetic.landmark_world(4000, 600, d=d, seed=0, max_observations=10, prior=True)
+    path = tmp_path / "landmarks.g2o"
+    g2o.write(path, world.graph, world.truth)
+    size = path.stat().st_size
+    tracemalloc.start()
+    try:
+        graph = g2o.read(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert graph.describe() == world.graph.describe()
+    assert peak < 4 * size, f"reading {size / 1e6:.1f} MB peaked at {peak / 1e6:.1f} MB"
+
+
+def test_a_bad_observation_in_a_late_chunk_has_its_number(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):
+    monkeypatch.setattr(_source, "BLOCK", 4096)
+    world = synthetic.landmark_world(300, 40, d=3, seed=1)
+    lines = g2o.dumps(world.graph, world.truth).splitlines()
+    at = max(i for i, line in enumerate(lines) if line.startswith("EDGE_SE3_TRACKXYZ")) - 3
+    parts = lines[at].split()
+    parts[3] = "5"  # a parameter id no PARAMS_SE3OFFSET line defines
+    lines[at] = " ".join(parts)
+    path = tmp_path / "late.g2o"
+    path.write_text(text(*lines))
+    with pytest.raises(g2o.ParseError, match=r"names parameter 5, which has no PARAMS_SE3OFFSET line") as info:
+        g2o.read(path)
+    assert info.value.lineno == at + 1
+    parts[3] = "0"
+    lines[at] = " ".join(parts[:-1])  # the last information entry missing
+    path.write_text(text(*lines))
+    with pytest.raises(g2o.ParseError, match=r"EDGE_SE3_TRACKXYZ needs 12 fields, got 11") as info:
+        g2o.read(path)
+    assert info.value.lineno == at + 1

@@ -1,7 +1,9 @@
 """A fuzzer of the g2o reader (issue 13): mutations of real files.
 
-Seeds: ``tinyGrid3D.g2o`` of the shared datasets and small 2-D and 3-D files written by
-``g2o.write``. Mutations, one to four per example: delete, duplicate or swap lines;
+Seeds: ``tinyGrid3D.g2o`` of the shared datasets, small 2-D and 3-D pose graphs written by
+``g2o.write``, and small 2-D and 3-D landmark files (landmarks, observations, priors; in 3-D
+two sensor offsets) written by it, one of them without vertex lines. Mutations, one to four
+per example: delete, duplicate or swap lines;
 truncate; flip bytes; insert garbage tokens; change numbers to huge, tiny, ``nan``,
 ``inf`` or ``-0.0``; change ids; insert byte order marks; change line ends to CR or CRLF;
 change tags. The contract:
@@ -9,7 +11,8 @@ change tags. The contract:
 - only :class:`~manopt_lie.problems.g2o.ParseError` escapes ``read`` (the suite turns
   RuntimeWarnings into errors, so no numpy warning either), with a line number within
   the file;
-- ``lint`` of every graph ``read`` accepts returns a report (and its text), never raises;
+- ``lint`` of every graph ``read`` accepts (pose or landmark graph) returns a report (and its
+  text), never raises;
 - every way to read the same bytes — a binary stream, a string (when they are UTF-8), a
   text stream, blocks of any size — gives the same graph or the same error.
 
@@ -19,6 +22,7 @@ The default hypothesis profile runs a few examples per seed (seconds); set
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from collections.abc import Callable
 from pathlib import Path
@@ -29,7 +33,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manopt_lie.problems import LintReport, g2o, synthetic
+from manopt_lie import SE3
+from manopt_lie.problems import LandmarkGraph, LintReport, g2o, synthetic
 from manopt_lie.problems.g2o import _source
 
 BOM = b"\xef\xbb\xbf"
@@ -50,7 +55,9 @@ GARBAGE = [
     b"\x0c",
     b"\xc2\x85",
 ]
-TAGS = [b"VERTEX_SE2", b"EDGE_SE2", b"VERTEX_SE3:QUAT", b"EDGE_SE3:QUAT", b"FIX", b"VERTEX_XY", b"vertex_se2", b""]
+TAGS = [b"VERTEX_SE2", b"EDGE_SE2", b"VERTEX_SE3:QUAT", b"EDGE_SE3:QUAT", b"FIX", b"VERTEX_XY", b"vertex_se2", b"",
+        b"EDGE_SE2_XY", b"EDGE_PRIOR_SE2", b"VERTEX_TRACKXYZ", b"EDGE_SE3_TRACKXYZ", b"PARAMS_SE3OFFSET",
+        b"EDGE_SE3_PRIOR", b"PARAMS_SE2OFFSET"]  # fmt: skip
 IDS = st.one_of(st.integers(-2, 12), st.sampled_from([2**63, -(2**63) - 1, 2**63 - 1]))
 
 index = st.integers(0, 10**6)  # taken modulo the current number of lines, tokens or bytes
@@ -123,9 +130,19 @@ def outcome(read: Callable[[], Any], lines: int) -> Outcome:
         return ("error", error.lineno, error.reason)
     report = g2o.lint(graph)
     assert isinstance(report, LintReport) and str(report)
+    landmarks: tuple[Any, ...] = ()
+    if isinstance(graph, LandmarkGraph):
+        assert report.n_landmarks == graph.n_landmarks
+        means = None if graph.prior_means is None else graph.prior_means.as_matrix()
+        offsets = None if graph.sensor_offsets is None else graph.sensor_offsets.as_matrix()
+        parts = (graph.landmark_ids, graph.landmarks, graph.observations, graph.points, graph.point_information,
+                 offsets, graph.offset_ids, graph.prior_poses, means, graph.prior_information,
+                 graph.observation_lines, graph.prior_lines)  # fmt: skip
+        landmarks = tuple(None if a is None else np.asarray(a).tobytes() for a in parts)
+        graph = graph.poses
     poses = None if graph.poses is None else graph.poses.as_matrix().tobytes()
     arrays = (graph.ids, graph.edges, graph.information, graph.measurements.as_matrix(), graph.fixed, graph.edge_lines)
-    return ("graph", graph.group, poses, *(np.asarray(a).tobytes() for a in arrays))
+    return ("graph", graph.group, poses, *(np.asarray(a).tobytes() for a in arrays), *landmarks)
 
 
 def check(data: bytes, block: int) -> None:
@@ -153,14 +170,25 @@ def check(data: bytes, block: int) -> None:
 def seeds(dataset) -> dict[str, bytes]:
     grid = synthetic.grid2d(3, 3, loop_closure_probability=0.5, seed=1)
     cube = synthetic.cube(2, loop_closure_probability=0.5, orientation="random", seed=2)
+    world2 = synthetic.landmark_world(5, 3, d=2, sensor_range=20.0, max_observations=2, prior=True, seed=3)
+    world3 = synthetic.landmark_world(4, 3, d=3, sensor_range=20.0, max_observations=2, prior=True, seed=4)
+    k = len(world3.graph.observations)
+    sensors = SE3.exp(np.array([[0.1, 0.0, 0.2, 0.0, 0.3, 0.0], [0.0] * 6]))[np.arange(k) % 2]
+    offsets = dataclasses.replace(world3.graph, sensor_offsets=sensors, offset_ids=np.array([7, 0])[np.arange(k) % 2])
     return {
         "tinyGrid3D": Path(dataset("tinyGrid3D")).read_bytes(),
         "grid2d": g2o.dumps(grid.graph, grid.truth).encode(),
         "cube": g2o.dumps(cube.graph, cube.truth).encode(),
+        "landmarks2d": g2o.dumps(world2.graph, world2.truth).encode(),
+        "landmarks3d": g2o.dumps(offsets, world3.truth).encode(),
+        "landmarks2d, no vertices": g2o.dumps(world2.graph).encode(),
     }
 
 
-@pytest.mark.parametrize("seed", ["tinyGrid3D", "grid2d", "cube"])
+SEEDS = ["tinyGrid3D", "grid2d", "cube", "landmarks2d", "landmarks3d", "landmarks2d, no vertices"]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 @given(ops=st.lists(mutation, min_size=1, max_size=4), block=st.sampled_from([1, 3, 64, _source.BLOCK]))
 def test_mutated_files_give_a_graph_or_a_parse_error(seeds, seed, ops, block):
     data = seeds[seed]
@@ -178,3 +206,6 @@ def test_the_seeds_are_read(seeds):
     """Unmutated, every seed is a graph (so the mutations start from readable files)."""
     for data in seeds.values():
         assert outcome(lambda data=data: g2o.read(io.BytesIO(data)), data.count(b"\n") + 1)[0] == "graph"
+    kinds = {name: type(g2o.read(io.BytesIO(data))) for name, data in seeds.items()}
+    assert [name for name, kind in kinds.items() if kind is LandmarkGraph] == SEEDS[3:]
+    assert g2o.read(io.BytesIO(seeds["landmarks3d"])).sensor_offsets is not None
