@@ -24,21 +24,41 @@ _SERIES = tuple(1.0 / factorial(k + 1) for k in range(13))  # 1/(k+1)!
 Kernel = Callable[[FloatArray], FloatArray]
 
 
-def jr(tau: FloatArray, n_rho: int, ad: Kernel, exp: Kernel, inverse: Kernel, adjoint: Kernel) -> FloatArray:
-    """``Jr(τ)`` for tangents ``(ρ, …)`` whose first ``n_rho`` coordinates enter ``Jr`` linearly."""
+def jr(
+    tau: FloatArray,
+    n_rho: int,
+    ad: Kernel,
+    exp: Kernel,
+    inverse: Kernel,
+    adjoint: Kernel,
+    step: Callable[[FloatArray, FloatArray], FloatArray] | None = None,
+) -> FloatArray:
+    """``Jr(τ)`` for tangents ``(ρ, …)`` whose first ``n_rho`` coordinates enter ``Jr`` linearly.
+
+    ``step(J, τ_l)``, if given, returns ``½ (I + Ad_{Exp τ_l}⁻¹) J`` faster than the generic
+    ``adjoint(inverse(exp(τ_l)))`` product (e.g. by blocks).
+    """
     m = np.maximum(np.abs(tau[..., :n_rho]).max(axis=-1), 1.0)
     unit = np.concatenate([tau[..., :n_rho] / m[..., None], tau[..., n_rho:]], axis=-1)
     a = ad(unit)
-    big = np.abs(a).max(initial=0.0)  # n·big ≥ ‖ad‖_F (and log₂ of it never overflows)
+    big = np.abs(a).max(axis=(-2, -1), keepdims=True)
+    safe = np.where(big > 0.0, big, 1.0)
+    scaled = a / safe
+    fro = float((big[..., 0, 0] * np.sqrt(np.einsum("...ij,...ij->...", scaled, scaled))).max(initial=0.0))
     n = a.shape[-1]
-    k = int(np.ceil(np.log2(big) + np.log2(n / DOUBLING_NORM))) if big > DOUBLING_NORM / n else 0
+    k = max(0, int(np.ceil(np.log2(fro / DOUBLING_NORM)))) if fro > DOUBLING_NORM else 0
     x = np.ldexp(-a, -k)
-    eye = np.eye(n)
-    j = _SERIES[-1] * x + _SERIES[-2] * eye
-    for c in _SERIES[-3::-1]:
-        j = j @ x + c * eye
+    diag = (..., np.arange(n), np.arange(n))
+    j = _SERIES[-1] * x
+    j[diag] += _SERIES[-2]
+    spare = np.empty_like(j)
+    for c in _SERIES[-3::-1]:  # Horner, in place: two buffers, the identity added on the diagonal only
+        np.matmul(j, x, out=spare)
+        spare[diag] += c
+        j, spare = spare, j
     half = np.ldexp(unit, -k)
     for level in range(k):
-        j = 0.5 * (j + adjoint(inverse(exp(np.ldexp(half, level)))) @ j)
+        tau_l = np.ldexp(half, level)
+        j = step(j, tau_l) if step is not None else 0.5 * (j + adjoint(inverse(exp(tau_l))) @ j)
     j[..., :n_rho, n_rho:] *= m[..., None, None]
     return j

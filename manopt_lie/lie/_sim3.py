@@ -158,9 +158,26 @@ def ad(tau: FloatArray) -> FloatArray:
     return out
 
 
+def _double(j: FloatArray, tau: FloatArray) -> FloatArray:
+    """``½ (I + Ad_{Exp τ}⁻¹) J`` by 3×3 blocks: with ``Exp(−τ) = (s, R, t)``,
+    ``Ad_{Exp(−τ)} = [[sR, [t]×R, −t], [0, R, 0], [0, 0, 1]]`` and ``J = [[D₁, X, y], [0, D₂, 0], [0, 0, 1]]``:
+    ``D₁ ← ½(I + sR)D₁``, ``X ← ½((I + sR)X + [t]×R D₂)``, ``y ← ½((I + sR)y − t)``, ``D₂ ← ½(I + R)D₂``."""
+    r = _so3.exp(-tau[..., 3:6])
+    sr = r * _scalar(np.exp(-tau[..., 6]))
+    t = w_apply(-tau[..., 3:6], -tau[..., :3], -tau[..., 6:])
+    d1, x, y, d2 = j[..., :3, :3], j[..., :3, 3:6], j[..., :3, 6], j[..., 3:6, 3:6]
+    out = np.array(j)
+    out[..., :3, :3] = 0.5 * (d1 + sr @ d1)
+    out[..., :3, 3:6] = 0.5 * (x + sr @ x + (_so3.hat(t) @ r) @ d2)
+    out[..., :3, 6] = 0.5 * (y + _matrix.matvec(sr, y) - t)
+    out[..., 3:6, 3:6] = 0.5 * (d2 + r @ d2)
+    return out
+
+
 def jr(tau: FloatArray) -> FloatArray:
-    """``Jr(τ) = Σₖ (−ad_τ)ᵏ/(k+1)!``, numerically exact by doubling (``_doubling.jr``)."""
-    return _doubling.jr(tau, 3, ad, exp, inverse, adjoint)
+    """``Jr(τ) = Σₖ (−ad_τ)ᵏ/(k+1)!``, numerically exact by doubling (``_doubling.jr``), the doubling
+    steps by 3×3 blocks (:func:`_double`)."""
+    return _doubling.jr(tau, 3, ad, exp, inverse, adjoint, step=_double)
 
 
 def jr_inv(tau: FloatArray) -> FloatArray:
