@@ -16,7 +16,8 @@ solver at a time, medians of ``--repeat`` runs:
   so that its cost is ours; GTSAM's results are certified by ``certify``. Both start from
   given rotations (the chordal initialization is computed outside the timing).
 
-Reported: time, cost, certified or not, rank, the certificate's share of our time, and the
+Pose graphs: the three competitors run in turn, ``--repeat`` rounds (other load hits them
+alike). Reported: time, cost, certified or not, rank, the certificate's share of our time, and the
 ratios (ours / theirs). ``python benchmarks/bench_certifiable.py [--repeat 3] [--json out.json]``.
 """
 
@@ -49,34 +50,41 @@ def _load() -> str:
         return "n/a"
 
 
-def ours(graph: Any, x0: Any, rank: int | None, seed: int, repeat: int) -> dict[str, Any]:
-    """The staircase timed from the graph: data, initialization, solve, certificates."""
-
-    def run() -> Any:
-        start = graph.chordal_initialization() if x0 == "chordal" else x0
-        return staircase(graph, start, rank=rank, seed=seed)
-
-    t, result = median_time(run, repeat)
+def ours(graph: Any, x0: Any, rank: int | None, seed: int) -> dict[str, Any]:
+    """One staircase timed from the graph: data, initialization, solve, certificates."""
+    start = time.perf_counter()
+    result = staircase(graph, graph.chordal_initialization() if x0 == "chordal" else x0, rank=rank, seed=seed)
     return {
-        "time": t, "fun": result.fun, "optimal": result.optimal, "rank": result.rank,
+        "time": time.perf_counter() - start, "fun": result.fun, "optimal": result.optimal, "rank": result.rank,
         "levels": len(result.levels), "iterations": result.iterations,
         "cert_share": result.time_certificates / result.time, "status": result.status.name,
     }  # fmt: skip
 
 
-def sesync(path: Path, init: str, repeat: int) -> dict[str, Any] | None:
-    """SE-Sync's C++ solver, single-threaded: the median of ``construct_s + total_s``."""
+def sesync(path: Path, init: str) -> dict[str, Any] | None:
+    """One run of SE-Sync's C++ solver, single-threaded: its own ``construct_s + total_s``."""
     if not SESYNC.is_file():
         return None
-    times, line = [], ""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    for _ in range(repeat):
-        out = subprocess.run([str(SESYNC), str(path), init, "1", "-", "-"], capture_output=True, text=True, env=env)
-        line = next((x for x in out.stdout.splitlines() if x.startswith("BENCH_RESULT")), "")
-        fields = dict(re.findall(r"(\w+)=(\S+)", line))
-        times.append(float(fields["construct_s"]) + float(fields["total_s"]))
+    out = subprocess.run([str(SESYNC), str(path), init, "1", "-", "-"], capture_output=True, text=True, env=env)
+    line = next((x for x in out.stdout.splitlines() if x.startswith("BENCH_RESULT")), "")
     fields = dict(re.findall(r"(\w+)=(\S+)", line))
-    return {"time": float(np.median(times)), "fun": float(fields["Fxhat"]), "optimal": fields["certified"] == "1"}
+    return {
+        "time": float(fields["construct_s"]) + float(fields["total_s"]), "fun": float(fields["Fxhat"]),
+        "optimal": fields["certified"] == "1",
+    }  # fmt: skip
+
+
+def interleaved_runs(runs: list[Any], repeat: int) -> list[dict[str, Any] | None]:
+    """``repeat`` rounds of the competitors in turn (other load hits them alike); per
+    competitor its last run's record with the median time."""
+    records: list[list[dict[str, Any]]] = [[] for _ in runs]
+    for _ in range(repeat):
+        for i, run in enumerate(runs):
+            out = run()
+            if out is not None:
+                records[i].append(out)
+    return [{**r[-1], "time": float(np.median([x["time"] for x in r]))} if r else None for r in records]
 
 
 def shonan(ra: Any, rotations: np.ndarray, repeat: int) -> dict[str, Any] | None:
@@ -150,9 +158,10 @@ def main() -> None:
         rng = np.random.default_rng(0)
         random_rot = (SO3 if graph.d == 3 else SO2).random(rng, (graph.n,))
         for init, x0 in (("chordal", "chordal"), ("random", random_rot)):
-            a = ours(graph, x0, None, 0, args.repeat)
-            b = ours(graph, x0, 5, 0, args.repeat)
-            c = sesync(path, init, args.repeat)
+            a, b, c = interleaved_runs(
+                [lambda: ours(graph, x0, None, 0), lambda: ours(graph, x0, 5, 0), lambda: sesync(path, init)],
+                args.repeat,
+            )
             report["pose_graphs"][f"{name}/{init}"] = {"ours": a, "ours_rank5": b, "sesync": c}
             print(f"| {name} | {init} | {_fmt(a)} | {_fmt(b)} | {_fmt(c)} | {_ratio(a, c)} | {a['cert_share']:.0%} |")
     print("\n## Rotation averaging: staircase vs GTSAM Shonan (same initial rotations)\n")
@@ -164,7 +173,7 @@ def main() -> None:
         random_rot = (SO3 if ra.d == 3 else SO2).random(rng, (ra.n,))
         chordal = ra.chordal_initialization()
         for init, x0 in (("chordal", chordal), ("random", random_rot)):  # both from given rotations
-            a = ours(ra, x0, None, 0, args.repeat)
+            (a,) = interleaved_runs([lambda: ours(ra, x0, None, 0)], args.repeat)
             start = chordal if init == "chordal" else random_rot
             t0 = time.perf_counter()
             c = shonan(ra, np.asarray(start.as_matrix()), args.peer_repeat)

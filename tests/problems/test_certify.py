@@ -306,3 +306,17 @@ def test_staircase_on_a_3d_pose_graph_with_translations_gauge():
     assert result.optimal
     np.testing.assert_allclose(result.x.as_matrix()[graph.anchor], np.eye(4), atol=1e-12)
     assert isinstance(result.x, SE3)
+
+
+def test_staircase_escapes_a_local_minimum_of_a_3d_pose_graph():
+    """The chordal trust region on SE(3) from random poses converges (gradient test) to a
+    spurious critical point 50× above the optimum; refused, and left at rank 4."""
+    graph = synthetic.cube(4, rotation_noise=0.1, translation_noise=0.1, seed=1).graph
+    rel = relaxation(graph)
+    local = TrustRegion(max_iterations=200).solve(graph.problem("chordal"), SE3.random(np.random.default_rng(1), (64,)))
+    refused = certify(graph, local.x, data=rel)
+    assert not refused.optimal and refused.lambda_min < -1.0
+    result = staircase(graph, local.x, data=rel)
+    assert result.optimal and result.rank > 3
+    assert result.fun < local.fun / 10 and refused.dual_bound <= result.fun
+    assert result.levels[0].certificate.lambda_min < -1.0 and np.isfinite(result.levels[0].escape_step)
