@@ -72,7 +72,9 @@ class Relaxation:
     """The reduced data of one graph's chordal cost (see the module docstring).
 
     Build it with :func:`relaxation`; it holds sparse matrices and factorizations only
-    (``O(m)`` memory), no dense ``Q``.
+    (``O(m)`` memory), no dense ``Q``. The factorizations are state (the last certificate
+    matrix factored, the preconditioner built on first use): share one ``Relaxation``
+    across calls, not across threads.
 
     Attributes
     ----------

@@ -331,13 +331,16 @@ def staircase(
     """Certifiably optimal chordal pose-graph optimization (SE-Sync) or rotation averaging
     (Shonan) by the Riemannian staircase.
 
-    Each level ``p``: the trust region on the rank-``p`` relaxation (``stopping``); for
+    Each level ``p``: the trust region on the rank-``p`` relaxation (``stopping``, and a
+    level ``p > d`` ends on a stall: :data:`STALL_WINDOW`); for
     ``p > d`` the point is rounded to rotations and polished by the trust region at rank
     ``d`` (``polish``); the rank-``d`` point is certified. Certified: done. Otherwise the
     rank-``p`` point is certified too: certified, the relaxation is solved but not tight
     (its bound is reported); a ``λ_min`` within ``10η`` of passing re-solves the level with
     100× tighter gradient tolerances (once); else the staircase climbs to
-    ``p + 1`` along the negative curvature direction (:func:`escape_saddle`).
+    ``p + 1`` along the negative curvature direction (:func:`escape_saddle`). The rank-``d``
+    trust region stops itself (``Status.CALLBACK``) once its point is certified, or seen
+    to be a saddle.
 
     Parameters
     ----------
