@@ -13,8 +13,9 @@ See ``docs/certifiable.md``.
 
 from .certificate import DEFAULT_TOL, EIG_FLOOR, Certificate, certify, certify_relaxation, rotations_of
 from .data import Relaxation, relaxation
+from .relaxed import escape_saddle, horizontal, preconditioner, relaxation_problem
 from .rounding import lift, round_solution
-from .staircase import Level, StaircaseResult, StaircaseStatus, escape_saddle, relaxation_problem, staircase
+from .staircase import Level, StaircaseResult, StaircaseStatus, staircase
 
 __all__ = [
     "DEFAULT_TOL",
@@ -27,6 +28,8 @@ __all__ = [
     "certify",
     "certify_relaxation",
     "escape_saddle",
+    "horizontal",
+    "preconditioner",
     "lift",
     "relaxation",
     "relaxation_problem",
