@@ -320,3 +320,19 @@ def test_staircase_escapes_a_local_minimum_of_a_3d_pose_graph():
     assert result.optimal and result.rank > 3
     assert result.fun < local.fun / 10 and refused.dual_bound <= result.fun
     assert result.levels[0].certificate.lambda_min < -1.0 and np.isfinite(result.levels[0].escape_step)
+
+
+def test_graphs_the_certificate_cannot_use_are_refused_by_name():
+    from manopt_lie.problems.costs import IndefiniteInformationError
+    from manopt_lie.problems.initialization import DisconnectedGraphError
+
+    graph = _pose_graph_2d()
+    info = np.array(graph.information)
+    info[3] = 0.0  # singular: no SE-Sync weights
+    bad = PoseGraph(graph.group, graph.edges, graph.measurements, info)
+    with pytest.raises(IndefiniteInformationError, match="1 edges"):
+        relaxation(bad)
+    edges = np.array([[0, 1], [2, 3]])
+    apart = RotationAveraging(SO3, edges, SO3.identity((2,)), n=4)
+    with pytest.raises(DisconnectedGraphError):
+        certify(apart, SO3.identity((4,)))
