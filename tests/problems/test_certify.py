@@ -288,6 +288,8 @@ def test_staircase_options_and_limits():
     graph, winding = _cycle(SO3)
     capped = staircase(graph, winding, max_rank=3)
     assert not capped.optimal and capped.status is StaircaseStatus.MAX_RANK
+    timed_out = staircase(graph, winding, max_time=0.0)
+    assert not timed_out.optimal and timed_out.status is StaircaseStatus.MAX_TIME
     assert capped.suboptimality >= capped.fun - 0.0  # f* = 0
     unpreconditioned = staircase(_rotations(2), precondition=False, rank=3)
     assert unpreconditioned.optimal and unpreconditioned.rank == 3
