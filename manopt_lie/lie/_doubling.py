@@ -44,9 +44,11 @@ def jr(
     big = np.abs(a).max(axis=(-2, -1), keepdims=True)
     safe = np.where(big > 0.0, big, 1.0)
     scaled = a / safe
-    fro = float((big[..., 0, 0] * np.sqrt(np.einsum("...ij,...ij->...", scaled, scaled))).max(initial=0.0))
+    # log₂ ‖ad‖_F, formed from the scaled matrix (‖ad‖_F itself may overflow for huge tangents)
+    log_fro = np.log2(safe[..., 0, 0]) + 0.5 * np.log2(np.maximum(np.einsum("...ij,...ij->...", scaled, scaled), 1.0))
+    top = float(np.where(big[..., 0, 0] > 0.0, log_fro, -np.inf).max(initial=-np.inf))
     n = a.shape[-1]
-    k = max(0, int(np.ceil(np.log2(fro / DOUBLING_NORM)))) if fro > DOUBLING_NORM else 0
+    k = max(0, int(np.ceil(top - np.log2(DOUBLING_NORM)))) if np.isfinite(top) else 0
     x = np.ldexp(-a, -k)
     diag = (..., np.arange(n), np.arange(n))
     j = _SERIES[-1] * x
