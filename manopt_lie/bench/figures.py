@@ -2,18 +2,19 @@
 
 Headless: figures are built on ``Figure`` and written through a backend's canvas, never
 through pyplot. The format follows the file's extension (:data:`FORMATS`); commands check
-it with :func:`figure_format` before any work.
+it with :func:`figure_format` before any work (this module imports Matplotlib only to save).
 """
 
 from __future__ import annotations
 
 import zlib
 from pathlib import Path
-
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
 from manopt_lie.atomic import atomic_write
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 FORMATS = ("png", "pdf", "svg")
 """The figure formats, by file extension."""
@@ -50,6 +51,8 @@ def save(fig: Figure, path: Path | str) -> Path:
     """Write ``fig`` to ``path`` in the format of its extension (:func:`figure_format`; dpi
     120 for PNG, tight box), atomically (:func:`manopt_lie.atomic.atomic_write`), parents
     created; then free it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # Matplotlib loads with the first figure
+
     path = Path(path)
     fmt = figure_format(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -122,14 +122,17 @@ def progress(quiet: bool) -> Any:
 class Lines:
     """Progress as plain lines on stderr, for logs (stderr not a terminal): one line per
     finished run, but at most one every ``interval`` seconds (the count says how far it got),
-    and always the last one and every failed one::
+    and always the last one and every failed one; ``preamble`` comes with the first::
 
-        manopt-lie bench: [3/12] cube-8 · chordal · lm: cost 400.6794 in 0.046 s (gradient norm)
+        manopt-lie bench: 12 runs of 3 instances in this process
+        manopt-lie bench: [1/12] cube-8 · chordal · gn: cost 400.6794 in 0.046 s (gradient norm)
     """
 
-    def __init__(self, command: str, total: int, *, interval: float = 1.0, stream: Any = None) -> None:
+    def __init__(self, command: str, total: int, *, interval: float = 1.0, stream: Any = None,
+                 preamble: str | None = None) -> None:  # fmt: skip
         self.command, self.total, self.interval = command, total, interval
         self.stream = stream if stream is not None else sys.stderr
+        self.preamble = preamble  # said with the first finished run: a usage error stays one line
         self.done = 0
         self.last = -math.inf
 
@@ -140,6 +143,9 @@ class Lines:
     def finished(self, label: str, text: str, *, important: bool = False) -> None:
         """One more run finished."""
         self.done += 1
+        if self.preamble is not None:
+            self.say(self.preamble)
+            self.preamble = None
         now = time.monotonic()
         if important or self.done == self.total or now - self.last >= self.interval:
             self.say(f"[{self.done}/{self.total}] {label}: {text}")

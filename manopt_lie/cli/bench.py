@@ -11,8 +11,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from manopt_lie.bench import optimum, plots, report
 from manopt_lie.bench import peers as peer_adapters
+from manopt_lie.bench import report
 from manopt_lie.bench.figures import FORMATS
 from manopt_lie.bench.record import Run, status_words
 from manopt_lie.bench.store import Store, StoreError
@@ -123,10 +123,12 @@ class _Progress:
     """What the user sees while the runs go: a rich bar on a terminal, plain lines in logs,
     nothing with ``--quiet``; and the results store, fed as runs arrive."""
 
-    def __init__(self, command: str, tasks: Sequence[Task], quiet: bool, store: Store | None) -> None:
+    def __init__(self, command: str, tasks: Sequence[Task], quiet: bool, store: Store | None, preamble: str, *,
+                 lines: bool = True) -> None:  # fmt: skip
         self.store, self.total = store, len(tasks)
         self.bar = _common.progress(quiet)
-        self.lines = None if quiet or self.bar is not None else _common.Lines(command, len(tasks))
+        lines = lines and not quiet and self.bar is None
+        self.lines = _common.Lines(command, len(tasks), preamble=preamble) if lines else None
         self.count = 0
 
     def __enter__(self) -> _Progress:
@@ -175,13 +177,13 @@ def _run_suite(entries: Sequence[Entry], args: argparse.Namespace, *, optimizers
     except StoreError as error:
         raise _common.UsageError(str(error)) from None
     done = [] if store is None else store.runs
-    left = len(tasks) - len({t.key for t in tasks} & {r.task_key for r in done})
-    with _Progress(args.command, [t for t in tasks if t.key not in {r.task_key for r in done}], args.quiet,
-                   store) as progress:  # fmt: skip
-        if progress.lines is not None:
-            where = "in this process" if scheduler is None else f"on {scheduler}"
-            resumed = f" ({len(tasks) - left} resumed from {store_path})" if left < len(tasks) else ""
-            progress.lines.say(f"{left} runs of {len(entries)} instances {where}{resumed}")
+    finished = {r.task_key for r in done}
+    todo = [t for t in tasks if t.key not in finished]
+    where = "in this process" if scheduler is None else f"on {scheduler}"
+    resumed = f" ({len(tasks) - len(todo)} resumed from {store_path})" if len(todo) < len(tasks) else ""
+    preamble = f"{len(todo)} runs of {len(entries)} instances {where}{resumed}"
+    # --json: a document for a program; its stderr gets no plain lines (a terminal still gets the bar)
+    with _Progress(args.command, todo, args.quiet, store, preamble, lines=not args.json) as progress:
         result = execute(tasks, settings=settings, data_dir=data_dir, on_task=progress.start,
                          on_result=progress.result, done=done, scheduler=scheduler, workers=workers)  # fmt: skip
     return settings, result
@@ -197,6 +199,8 @@ def _best(runs: Sequence[Run], spec: Graph) -> Run:
 
 def _plots(result: SuiteResult, entries: Sequence[Entry], settings: Settings, data_dir: Path | None,
            directory: Path, fmt: str) -> list[Path]:  # fmt: skip
+    from manopt_lie.bench import optimum, plots  # Matplotlib: loaded only for figures
+
     specs = {name: loaded.spec for name, loaded in result.loaded.items()}
     solutions = {key: o.x for key, o in result.outcomes.items() if o.x is not None}
     references = optimum.references(result.runs, solutions, specs)
