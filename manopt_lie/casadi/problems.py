@@ -1,43 +1,44 @@
 """Problems from symbolic costs and residuals: exact derivatives by CasADi, evaluated on batches.
 
-A cost or residual is written once, for one *edge* — a tuple of group elements
-(and optional numeric data) — with the operations of :mod:`.lie`. CasADi
-differentiates it through the tangent-space chart of each argument,
+A cost or residual is written once, for one *edge* — a tuple of points (and optional
+numeric data) — with CasADi operations and those of :mod:`.lie`, and summed over the
+edges. How a point enters depends on its manifold (:mod:`._spaces`):
 
-    f̂(δ₁, …, δₐ) = f(X₁ ⊕ δ₁, …, Xₐ ⊕ δₐ),   X ⊕ δ = X·Exp(δ),
+* on a **Lie group** (``LieGroupManifold(G)``, ``Power(LieGroupManifold(G), n)``) it is
+  the element matrix, and CasADi differentiates through the tangent-space chart of
+  each argument, ``f̂(δ₁, …, δₐ) = f(X₁ ⊕ δ₁, …, Xₐ ⊕ δₐ)`` at ``δ = 0``: the
+  Riemannian gradient ``∇_δ f̂(0)`` (left-invariant metric, Cartesian coordinates) and
+  the pullback Hessian ``∇²_δ f̂(0)``, what ``LieGroupManifold.ehess2rhess`` returns
+  (CONVENTIONS §6); for residuals, the right Jacobians ``∂r̂/∂δ_s (0)`` (CONVENTIONS §4);
+* on an **embedded manifold** (``Euclidean``, ``Sphere``, ``Stiefel``, ``Grassmann``,
+  ``SpecialOrthogonal(n)``, a ``Power`` of one, a ``Product`` of single manifolds) it is
+  the point's array, an ``n×1`` column or an ``n×p`` matrix, and CasADi gives the
+  Euclidean gradient ``∇f̄(x)`` and Hessian-vector products ``∇²f̄(x)[u]`` of the
+  expression as a function of the array's entries; the manifold converts them
+  (``egrad2rgrad``, ``ehess2rhess``), as for a hand-written :class:`~manopt_lie.optim.Problem`.
 
-at ``δ = 0``, which gives exactly what the Riemannian layer uses (CONVENTIONS §6):
-
-* the Riemannian gradient ``grad f(X) = ∇_δ f̂(0)`` (left-invariant metric, Cartesian coordinates);
-* the Hessian of the pullback ``∇²_δ f̂(0)``, what ``LieGroupManifold.ehess2rhess`` returns;
-* for residuals, the right Jacobians ``J_s = ∂r̂/∂δ_s (0)`` (CONVENTIONS §4).
-
-Each edge type becomes one ``casadi.Function`` per output set, mapped over its
-``m`` edges (``Function.map``) and called on numpy buffers without copies
-(``Function.buffer``): element ``i`` enters as the row-major flattening of its
-matrix, so a C-contiguous ``(m, k, k)`` stack is passed as it is.
+Each edge type becomes one ``casadi.Function`` per output set, mapped over its ``m``
+edges (``Function.map``) and called on numpy buffers without copies: point ``i`` enters
+as the row-major flattening of its array or matrix, so a C-contiguous stack is passed
+as it is.
 """
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from math import prod
 from typing import Any, cast
 
 import casadi as ca
 import numpy as np
-import scipy.sparse
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import NonFiniteError, ShapeError
-from ..lie import LieGroup
-from ..manifolds import LieGroupManifold, Power
+from ..manifolds import Euclidean, LieGroupManifold, Power
+from ..manifolds.base import Manifold
 from ..optim import Factor, LeastSquaresProblem, Problem
 from ..optim.losses import RobustLoss, Trivial, parse_loss
-from .lie import Matrix, SymbolicGroup, symbolic
+from ._compile import Compiled, edge_data, edges, expression
+from ._spaces import Space, space_of
 
 __all__ = ["SymbolicTerm", "SymbolicFactor", "problem_from_casadi", "least_squares_from_casadi"]
 
@@ -51,12 +52,12 @@ class SymbolicTerm:
     Parameters
     ----------
     variables : int array ``(m, arity)``
-        The elements each edge takes (indices into the ``Power``; ``0`` for a
-        single element). A 1-D array means arity 1.
+        The points each edge takes (indices into the ``Power``; ``0`` for a single
+        point). A 1-D array means arity 1.
     cost : callable
-        ``cost(X_1, …, X_arity, *p)`` on symbolic elements (CasADi ``SX``
-        matrices) and the edge's data ``p`` (``SX`` of each array's trailing
-        shape: ``1×1``, ``a×1`` or ``a×b``); returns a ``1×1`` expression.
+        ``cost(X_1, …, X_arity, *p)`` on symbolic points (CasADi matrices) and the
+        edge's data ``p`` (of each array's trailing shape: ``1×1``, ``a×1`` or
+        ``a×b``); returns a ``1×1`` expression.
     data : sequence of arrays ``(m, …)``
         Numeric data per edge (at most two trailing axes).
     name : str
@@ -81,297 +82,89 @@ class SymbolicFactor:
     name: str = "factor"
 
 
-# ---- the search space ---------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Space:
-    """The group, the number ``n`` of elements and the chart of a supported manifold."""
-
-    sym: type[SymbolicGroup]
-    n: int
-    single: bool  # LieGroupManifold(G) itself (points of batch shape ()), not a Power
-    geometry: str
-
-    @property
-    def size(self) -> int:
-        return self.sym.size
-
-    @property
-    def dim(self) -> int:
-        return self.sym.dim
-
-    def chart(self, x: Matrix, delta: Matrix) -> Matrix:
-        """The manifold's retraction: ``X ⊕ δ``, or ``(R ⊕ θ, t + ρ)`` in the product geometry."""
-        if self.geometry == "group":
-            return self.sym.rplus(x, delta)
-        sym = cast(Any, self.sym)
-        d = sym.point_dim
-        return sym.from_rotation_translation(
-            sym.rotation.rplus(sym.rotation_part(x), delta[d:]), sym.translation(x) + delta[:d]
-        )
-
-    def flat(self, x: Any) -> FloatArray:
-        """The points as a C-contiguous ``(n, k²)`` array of row-major matrices."""
-        if not isinstance(x, LieGroup) or type(x) is not self.sym.group:
-            raise TypeError(f"expected a {self.sym.group.__name__} element, got {type(x).__name__}")
-        a = x.as_matrix()
-        if a.shape != (() if self.single else (self.n,)) + (self.size, self.size):
-            want = "()" if self.single else f"({self.n},)"
-            raise ShapeError(f"expected a {self.sym.group.__name__} element of batch shape {want}, got {x.batch_shape}")
-        return np.ascontiguousarray(a.reshape(self.n, self.size * self.size))
-
-    def tangent(self, v: Any) -> FloatArray:
-        """A tangent vector as ``(n, d)``."""
-        a = np.asarray(v, dtype=np.float64)
-        shape = (self.dim,) if self.single else (self.n, self.dim)
-        if a.shape != shape:
-            raise ShapeError(f"tangent vector: expected shape {shape}, got {a.shape}")
-        return a.reshape(self.n, self.dim)
-
-    def shaped(self, t: FloatArray) -> FloatArray:
-        """``(n, d)`` back to the manifold's tangent shape."""
-        return t.reshape(self.dim) if self.single else t
-
-
-def _space(manifold: Any, caller: str, *, power_only: bool = False) -> _Space:
-    base, n, single = manifold, 1, True
-    if isinstance(manifold, Power):
-        if len(manifold.shape) != 1:
-            raise TypeError(f"{caller}: need Power(LieGroupManifold(G), n) with an integer n, got {manifold!r}")
-        base, n, single = manifold.manifold, manifold.shape[0], False
-    elif power_only:
-        raise TypeError(
-            f"{caller}: need Power(LieGroupManifold(G), n) (use n = 1 for a single element), got {manifold!r}"
-        )
-    if not isinstance(base, LieGroupManifold):
-        raise TypeError(
-            f"{caller}: need LieGroupManifold(G) or Power(LieGroupManifold(G), n) with G in SO2, SO3, SE2, SE3, "
-            f"got {manifold!r}"
-        )
-    try:
-        sym = symbolic(base.group)
-    except TypeError as err:
-        raise TypeError(f"{caller}: {err}") from None
-    return _Space(sym, n, single, base.geometry)
-
-
-# ---- one edge type, compiled ------------------------------------------------------------------------
-
-
-def _edges(variables: ArrayLike, n: int, name: str) -> NDArray[np.int64]:
-    v = np.asarray(variables)
-    if v.ndim == 1:
-        v = v[:, None]
-    if v.ndim != 2 or v.shape[0] == 0 or v.shape[1] == 0 or not np.issubdtype(v.dtype, np.integer):
-        raise ValueError(f"{name}: variables must be a non-empty integer array (m, arity), got shape {v.shape}")
-    bad = (v < 0) | (v >= n)
-    if bad.any():
-        edge = int(np.argwhere(bad)[0, 0])
-        raise ValueError(f"{name}: edge {edge} refers to variable {v[edge].tolist()} outside 0..{n - 1}")
-    return v.astype(np.int64)
-
-
-def _data(data: Sequence[ArrayLike], m: int, name: str) -> list[FloatArray]:
-    if isinstance(data, np.ndarray):
-        raise TypeError(f"{name}: data must be a sequence of arrays (wrap a single array in a tuple)")
-    out = []
-    for j, d in enumerate(data):
-        a = np.asarray(d, dtype=np.float64)
-        if a.ndim < 1 or a.ndim > 3 or a.shape[0] != m:
-            raise ShapeError(f"{name}: data[{j}] must have shape ({m}, ...) with at most two more axes, got {a.shape}")
-        if not np.isfinite(a).all():
-            raise NonFiniteError(f"{name}: data[{j}] holds non-finite values")
-        out.append(a)
-    return out
-
-
-def _unflatten(p: ca.SX, shape: tuple[int, ...]) -> ca.SX:
-    """A row-major flattened data entry back to a scalar, a column or a matrix."""
-    return ca.reshape(p, shape[1], shape[0]).T if len(shape) == 2 else p
-
-
-def _expression(out: Any, name: str, what: str) -> ca.SX:
-    """The user's result as an ``SX`` expression."""
-    if isinstance(out, ca.SX):
-        return out
-    if isinstance(out, ca.MX):
-        raise TypeError(f"{name}: the {what} returned an MX expression; build it from the SX elements it receives")
-    if isinstance(out, np.ndarray) and out.dtype == object:
-        raise TypeError(
-            f"{name}: the {what} returned a numpy array of CasADi objects; combine symbolic elements with "
-            "casadi operations (ca.mtimes, ca.dot, ca.sumsqr, ca.vertcat, …) instead of numpy"
-        )
-    try:
-        return ca.SX(ca.DM(np.asarray(out, dtype=np.float64)))
-    except (TypeError, ValueError, NotImplementedError, RuntimeError):
-        raise TypeError(f"{name}: the {what} must return a CasADi expression, got {type(out).__name__}") from None
-
-
-def _cse(expr: ca.SX) -> ca.SX:
-    """Common subexpressions merged (``casadi.cse``, CasADi ≥ 3.6; 5–10 % fewer instructions)."""
-    cse = getattr(ca, "cse", None)
-    return cse(expr) if cse is not None else expr
-
-
-def _options(jit: bool) -> dict[str, Any]:
-    """``casadi.Function`` options: none, or just-in-time compilation by the system's C compiler
-    (CasADi's ``"shell"`` compiler; temporary files in the system's temp directory)."""
-    if not jit:
-        return {}
-    flags = {"flags": ["-O2"], "directory": tempfile.gettempdir() + os.sep}
-    return {"jit": True, "compiler": "shell", "jit_options": flags}
-
-
-class _Batched:
-    """``fn.map(m)`` called on C-contiguous ``(m, nnz)`` numpy arrays through a zero-copy buffer."""
-
-    def __init__(self, fn: ca.Function, m: int) -> None:
-        self._fn = fn.map(m)
-        self._buffer, self._run = self._fn.buffer()
-        self._shapes = [(m, fn.nnz_out(i)) for i in range(fn.n_out())]
-
-    def __call__(self, *args: FloatArray) -> list[FloatArray]:
-        # The buffer reads raw memory: every argument must be a C-contiguous float64 (m, nnz) array.
-        # (casadi's stubs list a size argument that its SWIG wrapper takes from the buffer itself)
-        for i, a in enumerate(args):
-            self._buffer.set_arg(i, a.data)  # type: ignore[call-arg]
-        outs = [np.empty(s) for s in self._shapes]
-        for i, o in enumerate(outs):
-            self._buffer.set_res(i, o.data)  # type: ignore[call-arg]
-        self._run()
-        return outs
-
-
-class _Compiled:
-    """One edge type: symbolic inputs, the user's expression through the chart, and its mapped functions.
-
-    ``kind="cost"``: ``value → f (1)``, ``gradient → g (a·d)``, ``hessian → H ((a·d)²)``;
-    ``kind="residual"``: ``value → r (k)``, ``jacobian → (r (k), J (k·a·d))``; matrices row-major.
-    All are taken at ``δ = 0`` (substituted symbolically, which folds the chart's
-    series branches into constants).
-    """
-
-    def __init__(
-        self, space: _Space, variables: NDArray[np.int64], fn: Callable[..., Any], data: list[FloatArray],
-        kind: str, name: str, jit: bool = False,
-    ) -> None:  # fmt: skip
-        if not callable(fn):
-            raise TypeError(f"{name}: the {kind} must be callable, got {type(fn).__name__}")
-        self.space, self.variables, self.name = space, variables, name
-        self.m, arity = variables.shape
-        k, d = space.size, space.dim
-        xs = [ca.SX.sym(f"x{s}", k * k) for s in range(arity)]
-        ps = [ca.SX.sym(f"p{j}", max(1, prod(a.shape[1:]))) for j, a in enumerate(data)]
-        self.data = [np.ascontiguousarray(a.reshape(self.m, -1)) for a in data]
-        points = [space.sym.from_matrix(ca.reshape(x, k, k).T) for x in xs]
-        args = [_unflatten(p, a.shape[1:]) for p, a in zip(ps, data, strict=True)]
-        delta = ca.SX.sym("delta", arity * d)
-        moved = [space.chart(x, delta[s * d : (s + 1) * d]) for s, x in enumerate(points)]
-        out = _expression(fn(*moved, *args), name, kind)
-        if kind == "cost":
-            if out.shape != (1, 1):
-                raise ValueError(
-                    f"{name}: the cost must return a scalar (1×1) expression, got {out.shape[0]}×{out.shape[1]}"
-                )
-            hess, grad = ca.hessian(out, delta)
-            outputs = {"value": [out], "gradient": [grad], "hessian": [ca.vec(hess.T)]}
-        else:
-            if min(out.shape) != 1 or out.numel() == 0:
-                raise ValueError(
-                    f"{name}: the residual must return a non-empty vector, got a {out.shape[0]}×{out.shape[1]} matrix"
-                )
-            out = ca.vec(out)
-            outputs = {"value": [out], "jacobian": [out, ca.vec(ca.jacobian(out, delta).T)]}
-        self.k = out.numel()
-        self._symbols, self._jit = xs + ps, jit
-        zero = ca.DM.zeros(arity * d)
-        self._outputs = {
-            label: [_cse(o) for o in ca.substitute([ca.densify(o) for o in outs], [delta], [zero])]
-            for label, outs in outputs.items()
-        }
-        self._functions: dict[str, _Batched] = {}
-        self.function("value")  # built now, so that free symbols are reported at once
-        # Edge e, slot s is variable variables[e, s]: rows scatter-added by S (n, m·arity), or
-        # nothing to gather or scatter when the edges are the variables in order.
-        rows = variables.reshape(-1)
-        self.in_order = arity == 1 and np.array_equal(rows, np.arange(space.n))
-        self.scatter = scipy.sparse.csr_matrix(
-            (np.ones(rows.size), (rows, np.arange(rows.size))), shape=(space.n, rows.size)
-        )
-
-    def function(self, label: str) -> _Batched:
-        """The mapped function ``label``, built on first use (the Hessian only if asked for)."""
-        if label not in self._functions:
-            try:
-                fun = ca.Function(f"sym_{label}", self._symbols, self._outputs[label], _options(self._jit))
-            except RuntimeError as err:
-                if "free" in str(err):
-                    raise ValueError(
-                        f"{self.name}: depends on symbols other than its arguments (free variables): {err}"
-                    ) from None
-                if self._jit:
-                    raise RuntimeError(f"{self.name}: jit=True: compiling with gcc failed: {err}") from None
-                raise
-            self._functions[label] = _Batched(fun, self.m)
-        return self._functions[label]
-
-    def __call__(self, label: str, flat: FloatArray) -> list[FloatArray]:
-        """The mapped function ``label`` at the points ``flat`` ``(n, k²)``."""
-        slots = [flat] if self.in_order else [flat[self.variables[:, s]] for s in range(self.variables.shape[1])]
-        return self.function(label)(*slots, *self.data)
-
-    def scatter_add(self, rows: FloatArray) -> FloatArray:
-        """``Σ`` of per-edge, per-slot tangent rows ``(m·arity, d)`` into the variables, ``(n, d)``."""
-        return rows if self.in_order else self.scatter @ rows
+def _compile(space: Space, variables: ArrayLike, fn: Any, data: Sequence[ArrayLike], kind: str, name: str,
+             jit: bool, symbols: str) -> Compiled:  # fmt: skip
+    if space.product:
+        k = len(space.parts)
+        return Compiled(
+            [p.kind for p in space.parts], range(k), [1] * k, np.zeros((1, k), dtype=np.int64), fn,
+            edge_data(data, 1, name), kind, name, jit=jit, symbols=symbols,
+        )  # fmt: skip
+    v = edges(variables, space.n, name)
+    part = space.parts[0]
+    return Compiled(
+        [part.kind] * v.shape[1], [0] * v.shape[1], [space.n], v, fn, edge_data(data, v.shape[0], name),
+        kind, name, jit=jit, symbols=symbols,
+    )  # fmt: skip
 
 
 # ---- smooth costs -------------------------------------------------------------------------------
 
 
-class _CostEvaluator:
-    """Cost, Riemannian gradient and pullback-Hessian products of a sum of compiled terms.
+class _ChartEvaluator:
+    """Cost, Riemannian gradient and pullback-Hessian products of compiled chart terms.
 
     The gradient and the per-edge Hessian blocks at the most recent point are
-    remembered (keyed on its identity: points are immutable), so the many
-    Hessian-vector products of a trust-region step cost one gather, one batch
-    of small matrix products and one sparse scatter each; gradient-only
-    optimizers never evaluate the Hessian.
+    remembered (keyed on its identity: group elements are immutable), so the many
+    Hessian-vector products of a trust-region step cost one gather, one batch of
+    small matrix products and one sparse scatter each; gradient-only optimizers
+    never evaluate the Hessian.
     """
 
-    def __init__(self, space: _Space, terms: list[_Compiled]) -> None:
+    def __init__(self, space: Space, terms: list[Compiled]) -> None:
         self.space, self.terms = space, terms
-        self._grad: tuple[Any, FloatArray] | None = None
+        self._grad: tuple[Any, Any] | None = None
         self._hess: tuple[Any, list[FloatArray]] | None = None
 
     def cost(self, x: Any) -> float:
-        flat = self.space.flat(x)
-        return float(sum(float(np.sum(t("value", flat)[0])) for t in self.terms))
+        flats = self.space.flats(x)
+        return float(sum(float(np.sum(t("value", flats)[0])) for t in self.terms))
 
     def grad(self, x: Any) -> FloatArray:
         if self._grad is None or self._grad[0] is not x:
-            flat = self.space.flat(x)
-            d = self.space.dim
-            g = np.zeros((self.space.n, d))
+            flats, acc = self.space.flats(x), self.space.zeros()
             for t in self.terms:
-                g += t.scatter_add(t("gradient", flat)[0].reshape(-1, d))
-            self._grad = (x, self.space.shaped(g))
-        return self._grad[1].copy()
+                t.scatter_add(t("gradient", flats)[0], acc)
+            self._grad = (x, self.space.shaped(acc))
+        return cast(FloatArray, self._grad[1]).copy()
 
     def hess(self, x: Any, v: Any) -> FloatArray:
         if self._hess is None or self._hess[0] is not x:
-            flat = self.space.flat(x)
+            flats = self.space.flats(x)
             blocks = []
             for t in self.terms:
-                ad = t.variables.shape[1] * self.space.dim
-                blocks.append(t("hessian", flat)[0].reshape(t.m, ad, ad))
+                ad = int(t.offsets[-1])
+                blocks.append(t("hessian", flats)[0].reshape(t.m, ad, ad))
             self._hess = (x, blocks)
-        vv = self.space.tangent(v)
-        out = np.zeros_like(vv)
+        rows, acc = self.space.rows(v, "tangent vector"), self.space.zeros()
         for t, h in zip(self.terms, self._hess[1], strict=True):
-            local = (vv if t.in_order else vv[t.variables]).reshape(t.m, -1, 1)  # (m, a·d, 1)
-            out += t.scatter_add(np.matmul(h, local).reshape(-1, self.space.dim))
-        return self.space.shaped(out)
+            local = np.concatenate(t.gather(rows), axis=1)[:, :, None]  # (m, a·d, 1)
+            t.scatter_add(np.matmul(h, local)[:, :, 0], acc)
+        return cast(FloatArray, self.space.shaped(acc))
+
+
+class _AmbientEvaluator:
+    """Cost, Euclidean gradient and Euclidean Hessian-vector products of compiled ambient terms
+    (the :class:`~manopt_lie.optim.Problem` remembers the gradient of the last point)."""
+
+    def __init__(self, space: Space, terms: list[Compiled]) -> None:
+        self.space, self.terms = space, terms
+
+    def cost(self, x: Any) -> float:
+        flats = self.space.flats(x)
+        return float(sum(float(np.sum(t("value", flats)[0])) for t in self.terms))
+
+    def egrad(self, x: Any) -> Any:
+        flats, acc = self.space.flats(x), self.space.zeros()
+        for t in self.terms:
+            t.scatter_add(t("gradient", flats)[0], acc)
+        return self.space.shaped(acc)
+
+    def ehess(self, x: Any, u: Any) -> Any:
+        flats, rows, acc = self.space.flats(x), self.space.rows(u, "ambient direction"), self.space.zeros()
+        for t in self.terms:
+            t.scatter_add(t("hvp", flats, rows)[0], acc)
+        return self.space.shaped(acc)
 
 
 def _as_list(items: Any, kind: type, caller: str) -> list[Any]:
@@ -393,112 +186,131 @@ def _as_list(items: Any, kind: type, caller: str) -> list[Any]:
     return out
 
 
+def _terms(space: Space, cost: Any, variables: Any, data: Sequence[ArrayLike], name: str) -> list[SymbolicTerm]:
+    if isinstance(cost, SymbolicTerm):
+        cost = [cost]
+    if callable(cost):
+        if space.product and variables is not None:
+            raise ValueError("problem_from_casadi: on a Product the cost takes one argument per factor; no variables")
+        edges_ = np.zeros((1, 1), dtype=np.int64) if space.product else np.arange(space.n)[:, None]
+        return [SymbolicTerm(edges_ if variables is None else variables, cost, data, name)]
+    if variables is not None or len(data):
+        raise ValueError("problem_from_casadi: with SymbolicTerms, give variables and data in each term")
+    if space.product:
+        raise TypeError("problem_from_casadi: on a Product, give one cost function of all factors")
+    return _as_list(cost, SymbolicTerm, "problem_from_casadi")
+
+
 def problem_from_casadi(
-    manifold: LieGroupManifold | Power,
+    manifold: Manifold,
     cost: Callable[..., Any] | Sequence[SymbolicTerm],
     *,
     variables: ArrayLike | None = None,
     data: Sequence[ArrayLike] = (),
     name: str = "cost",
     jit: bool = False,
+    symbols: str = "auto",
 ) -> Problem:
     """A :class:`~manopt_lie.optim.Problem` from a symbolic cost, with CasADi's exact
-    Riemannian gradient and Hessian.
+    gradient and Hessian, on any manifold of the library.
 
-    The cost is a sum over edges of a function of a few elements,
-    ``f(x) = Σ_e cost(X[v_e1], …, X[v_ea], *data_e)``. For each edge, with the
-    chart ``f̂(δ) = cost(X₁ ⊕ δ₁, …, Xₐ ⊕ δₐ)`` (the manifold's retraction),
+    The cost is a sum over edges of a function of a few points,
+    ``f(x) = Σ_e cost(X[v_e1], …, X[v_ea], *data_e)`` (on one point, or on a
+    product, a single edge). The function receives each point as a CasADi matrix:
+
+    ============================================  =========================================
+    manifold                                      argument
+    ============================================  =========================================
+    ``Euclidean(n)``, ``Sphere(n)``               ``n×1`` column
+    ``Euclidean(m, n)``, ``Stiefel(n, p)``,       ``m×n`` / ``n×p`` matrix
+    ``Grassmann(n, p)``, ``SpecialOrthogonal(n)``
+    ``LieGroupManifold(G)``                       the element matrix (``Rn(n)``: ``n×1``)
+    ``Product(M₁, M₂, …)``                        one argument per factor, as above
+    ``Power(M, n)``                               the points of an edge, each as for ``M``
+    ============================================  =========================================
+
+    On a Lie group (alone or a ``Power`` of it) the derivatives are those of the chart
+    ``f̂_e(δ) = cost(X₁ ⊕ δ₁, …, Xₐ ⊕ δₐ)``::
 
         grad f(x) = Σ_e scatter(∇_δ f̂_e(0)),   Hess f(x)[v] = Σ_e scatter(∇²_δ f̂_e(0) v_e),
 
-    the Hessian being that of the pullback ``δ ↦ f(x ⊕ δ)`` — the same as
-    ``LieGroupManifold.ehess2rhess`` (CONVENTIONS §6), exact to second order
-    along the retraction.
+    the Hessian being that of the pullback ``δ ↦ f(x ⊕ δ)`` (CONVENTIONS §6). On the
+    others the expression is differentiated in the point's entries, ``G = ∇f̄(x)`` and
+    ``∇²f̄(x)[u]`` (forward over reverse, never a matrix), and the manifold converts them:
+    ``grad f(x) = egrad2rgrad(x, G)``, ``Hess f(x)[v] = ehess2rhess(x, G, ∇²f̄(x)[v], v)``
+    (a product's Lie-group factors through their matrix embedding).
 
     Parameters
     ----------
-    manifold : LieGroupManifold or Power
-        ``LieGroupManifold(G)`` (points: one element) or
-        ``Power(LieGroupManifold(G), n)`` (points: batch shape ``(n,)``) with
-        ``G`` in ``SO2, SO3, SE2, SE3``, either geometry.
+    manifold : Manifold
+        One of the table above; ``Power(M, n)`` with an integer ``n``.
     cost : callable or sequence of SymbolicTerm
-        ``cost(X_1, …, X_a, *p)``: symbolic elements (``SX`` matrices) and the
-        edge's data in, a ``1×1`` ``SX`` out. Or several edge types, each a
-        :class:`SymbolicTerm` (then ``variables`` and ``data`` stay unset).
+        ``cost(X_1, …, X_a, *p)``: symbolic points and the edge's data in, a ``1×1``
+        expression out. Or several edge types, each a :class:`SymbolicTerm` (then
+        ``variables`` and ``data`` stay unset; not on a ``Product``).
     variables : int array ``(m, a)``, optional
-        The elements of each edge. Default: each element on its own
-        (``arange(n)[:, None]``; ``[[0]]`` for a single element), so the cost
-        is a function of *one* element summed over the ``n`` — the mapped,
-        full-speed path. A function of all ``n`` elements at once is
-        ``variables=[range(n)]`` (one edge; its graph grows with ``n``).
+        The points of each edge of a ``Power``. Default: each point on its own
+        (``arange(n)[:, None]``), so the cost is a function of *one* point summed over
+        the ``n`` — the mapped, full-speed path. A function of all ``n`` points at once
+        is ``variables=[range(n)]`` (one edge of ``n`` arguments; its graph grows with ``n``).
     data : sequence of arrays ``(m, …)``
-        Numeric data per edge, passed to ``cost`` after the elements. Constants
-        shared by every edge can simply be closed over.
+        Numeric data per edge, passed to ``cost`` after the points (first axis 1 on a
+        single point or a product). Constants shared by every edge can simply be closed over.
     name : str
         For messages.
     jit : bool
         Compile the functions to machine code with ``gcc`` (CasADi's ``"shell"``
         compiler; ``gcc`` must be on the ``PATH``): 2–5x faster evaluations for
         ~0.1–0.5 s of compilation per function.
+    symbols : {"auto", "SX", "MX"}
+        CasADi's scalar (``SX``) or matrix (``MX``) symbols. ``"auto"``: ``MX`` once a
+        point has more than 100 entries (a dense ``A @ x`` stays one operation), ``SX``
+        otherwise (fastest for small points).
 
     Returns
     -------
     Problem
-        With ``rgrad`` and ``rhess``; gradients have the manifold's tangent
-        shape, ``(d,)`` or ``(n, d)``.
+        With ``rgrad`` and ``rhess`` (Lie groups; gradients of shape ``(d,)`` or
+        ``(n, d)``), or with ``egrad`` and ``ehess`` (the others).
 
     Raises
     ------
     TypeError
-        For an unsupported manifold, a non-callable cost or a result that is
-        not a CasADi expression.
+        For an unsupported manifold, a non-callable cost or a result that is not a
+        CasADi expression (a numeric function applied to symbols raises what it raises).
     ValueError
         For a non-scalar cost, free symbols, or malformed variables or data
         (``ShapeError``, ``NonFiniteError``).
     """
-    space = _space(manifold, "problem_from_casadi")
-    if isinstance(cost, SymbolicTerm):
-        cost = [cost]
-    if callable(cost):
-        edges = np.arange(space.n)[:, None] if variables is None else variables
-        terms = [SymbolicTerm(edges, cost, data, name)]
-    else:
-        if variables is not None or len(data):
-            raise ValueError("problem_from_casadi: with SymbolicTerms, give variables and data in each term")
-        terms = _as_list(cost, SymbolicTerm, "problem_from_casadi")
-    compiled = []
-    for t in terms:
-        v = _edges(t.variables, space.n, t.name)
-        compiled.append(_Compiled(space, v, t.cost, _data(t.data, v.shape[0], t.name), "cost", t.name, jit))
-    evaluator = _CostEvaluator(space, compiled)
-    return Problem(manifold, evaluator.cost, rgrad=evaluator.grad, rhess=evaluator.hess)
+    space = space_of(manifold, "problem_from_casadi")
+    terms = _terms(space, cost, variables, data, name)
+    compiled = [_compile(space, t.variables, t.cost, t.data, "cost", t.name, jit, symbols) for t in terms]
+    if space.chart:
+        chart = _ChartEvaluator(space, compiled)
+        return Problem(manifold, chart.cost, rgrad=chart.grad, rhess=chart.hess)
+    ambient = _AmbientEvaluator(space, compiled)
+    return Problem(manifold, ambient.cost, egrad=ambient.egrad, ehess=ambient.ehess)
 
 
 # ---- least squares ------------------------------------------------------------------------------
 
 
-def _factor(space: _Space, f: SymbolicFactor, jit: bool) -> tuple[Factor, _Compiled]:
-    v = _edges(f.variables, space.n, f.name)
-    c = _Compiled(space, v, f.residual, _data(f.data, v.shape[0], f.name), "residual", f.name, jit)
-    m, arity = v.shape
-    d = space.dim
+def _factor(space: Space, f: SymbolicFactor, jit: bool, symbols: str) -> tuple[Factor, Compiled]:
+    c = _compile(space, f.variables, f.residual, f.data, "residual", f.name, jit, symbols)
+    m, arity = c.variables.shape
+    part, d = space.parts[0], space.parts[0].kind.dim
 
-    def residual(*points: LieGroup, jac: bool = False) -> Any:
+    def residual(*points: Any, jac: bool = False) -> Any:
         if len(points) != arity:
             raise TypeError(f"{f.name}: expected {arity} point batches, got {len(points)}")
-        flats = []
-        for p in points:
-            a = p.as_matrix()
-            if a.shape != (m, space.size, space.size):
-                raise ShapeError(f"{f.name}: expected point batches of shape ({m},), got {p.batch_shape}")
-            flats.append(np.ascontiguousarray(a.reshape(m, -1)))
+        flats = [part.flat(p, f"{f.name}: point batch", (m,)) for p in points]
         if not jac:
             return c.function("value")(*flats, *c.data)[0]
         r, j = c.function("jacobian")(*flats, *c.data)
         j = j.reshape(m, c.k, arity * d)
         return r, [j[..., s * d : (s + 1) * d] for s in range(arity)]
 
-    return Factor(v, residual, f.loss, f.name), c
+    return Factor(c.variables, residual, f.loss, f.name), c
 
 
 def _fixed_hessian(
@@ -513,6 +325,24 @@ def _fixed_hessian(
     return product
 
 
+def _least_squares_space(manifold: Any) -> Space:
+    caller = "least_squares_from_casadi"
+    if not isinstance(manifold, Power):
+        raise TypeError(
+            f"{caller}: need Power(LieGroupManifold(G), n) or Power(Euclidean(d), n) "
+            f"(use n = 1 for a single element), got {manifold!r}"
+        )
+    space = space_of(manifold, caller)
+    base = space.parts[0].base
+    vector = isinstance(base, Euclidean) and len(base.point_shape) == 1
+    if not (space.chart or vector or isinstance(base, LieGroupManifold)):
+        raise TypeError(
+            f"{caller}: least squares need tangent coordinates: Power(LieGroupManifold(G), n) or "
+            f"Power(Euclidean(d), n), got {manifold!r} (use problem_from_casadi with ½‖r‖² as the cost)"
+        )
+    return space
+
+
 def least_squares_from_casadi(
     manifold: Power,
     variables: ArrayLike | Sequence[SymbolicFactor],
@@ -524,26 +354,28 @@ def least_squares_from_casadi(
     exact_hessian: bool = False,
     name: str = "factor",
     jit: bool = False,
+    symbols: str = "auto",
 ) -> LeastSquaresProblem:
     """A :class:`~manopt_lie.optim.LeastSquaresProblem` from symbolic residuals, with
     CasADi's right Jacobians.
 
     ``f(x) = ½ Σ_factors Σ_e ρ(‖r_e‖²)`` with, per edge, ``r_e = residual(X[v_e1], …, *data_e)``
-    and the right Jacobians ``J_s = ∂/∂δ_s residual(X₁ ⊕ δ₁, …)|_{δ=0}`` (CONVENTIONS §4),
-    all edges of a factor type evaluated by one mapped ``casadi.Function``.
+    and the right Jacobians ``J_s = ∂/∂δ_s residual(X₁ ⊕ δ₁, …)|_{δ=0}`` (CONVENTIONS §4;
+    on ``Euclidean(d)`` the ordinary Jacobians), all edges of a factor type evaluated by
+    one mapped ``casadi.Function``.
 
     Parameters
     ----------
     manifold : Power
-        ``Power(LieGroupManifold(G), n)``, ``G`` in ``SO2, SO3, SE2, SE3``
-        (``n = 1`` for a single element).
+        ``Power(LieGroupManifold(G), n)``, ``G`` a group with a symbolic twin or
+        ``Rn(d)``, or ``Power(Euclidean(d), n)`` (``n = 1`` for a single point).
     variables : int array ``(m, a)``, or sequence of SymbolicFactor
-        The elements of each edge; or several factor types (then ``residual``,
+        The points of each edge; or several factor types (then ``residual``,
         ``data`` and ``loss`` stay unset). Tuples ``(variables, residual, …)``
         are read as ``SymbolicFactor(*tuple)``.
     residual : callable
-        ``residual(X_1, …, X_a, *p)``: symbolic elements and the edge's data in,
-        a vector ``SX`` of ``k`` residuals out.
+        ``residual(X_1, …, X_a, *p)``: symbolic points and the edge's data in,
+        a vector of ``k`` residuals out.
     data : sequence of arrays ``(m, …)``
         Numeric data per edge.
     loss : RobustLoss, str or None
@@ -557,16 +389,16 @@ def least_squares_from_casadi(
         large residuals. Plain least squares only.
     name : str
         For messages.
-    jit : bool
+    jit, symbols
         As in :func:`problem_from_casadi`.
 
     Raises
     ------
     TypeError, ValueError
         As :func:`problem_from_casadi`; also for a residual that is not a
-        vector, or ``exact_hessian`` with a robust loss.
+        vector, a manifold without vector tangents, or ``exact_hessian`` with a robust loss.
     """
-    space = _space(manifold, "least_squares_from_casadi", power_only=True)
+    space = _least_squares_space(manifold)
     if isinstance(variables, SymbolicFactor):
         variables = [variables]
     if residual is not None:
@@ -577,24 +409,25 @@ def least_squares_from_casadi(
         if isinstance(variables, np.ndarray):
             raise TypeError("least_squares_from_casadi: give the residual function after the variables")
         factors = _as_list(variables, SymbolicFactor, "least_squares_from_casadi")
-    built = [_factor(space, f, jit) for f in factors]
+    built = [_factor(space, f, jit, symbols) for f in factors]
     hessian = None
     if exact_hessian:
         if any(not isinstance(parse_loss(f.loss), Trivial) for f in factors):
             raise ValueError("least_squares_from_casadi: exact_hessian=True needs plain least squares (no robust loss)")
         terms = [
-            _Compiled(space, c.variables, _half_norm2(f.residual), _data(f.data, c.m, f.name), "cost", f.name, jit)
+            _compile(space, c.variables, _half_norm2(f.residual, c.sym), f.data, "cost", f.name, jit, symbols)
             for f, (_, c) in zip(factors, built, strict=True)
         ]
         keep = np.zeros(space.n, dtype=bool)
         keep[np.asarray(fixed, dtype=np.int64)] = True
-        hessian = _fixed_hessian(_CostEvaluator(space, terms).hess, keep)
+        hess = _ChartEvaluator(space, terms).hess if space.chart else _AmbientEvaluator(space, terms).ehess
+        hessian = _fixed_hessian(hess, keep)
     return LeastSquaresProblem(manifold, [b[0] for b in built], fixed=fixed, hessian=hessian)
 
 
-def _half_norm2(residual: Callable[..., Any]) -> Callable[..., Any]:
+def _half_norm2(residual: Callable[..., Any], sym: type) -> Callable[..., Any]:
     def cost(*args: Any) -> Any:
-        r = ca.vec(_expression(residual(*args), "residual", "residual"))
+        r = ca.vec(expression(residual(*args), "residual", "residual", sym))
         return 0.5 * ca.sumsqr(r)
 
     return cost

@@ -3,6 +3,7 @@
 from .base import Manifold, MissingOperationError
 from .blocks import Blocks, Values
 from .euclidean import Euclidean
+from .grassmann import Grassmann
 from .lie_group import LieGroupManifold
 from .product import Power, Product, ProductVector
 from .sphere import Sphere
@@ -15,6 +16,7 @@ __all__ = [
     "Euclidean",
     "Sphere",
     "Stiefel",
+    "Grassmann",
     "SpecialOrthogonal",
     "Product",
     "Power",

@@ -3,9 +3,10 @@
 Every optimizer is configured in ``__init__`` and run by
 ``solve(problem, x0, callback=None) -> OptimizeResult``. Progress goes to the
 ``logging`` logger ``manopt_lie.optim`` (one DEBUG line per iteration, one INFO
-line at the end) and to the optional callback, which receives an
-:class:`IterationInfo` after every iteration and stops the run by returning
-``True`` (or raising ``StopIteration``).
+line at the end), to a table on stderr when the optimizer was built with
+``verbosity=1`` or ``2`` (:mod:`._verbosity`), and to the optional callback,
+which receives an :class:`IterationInfo` after every iteration and stops the
+run by returning ``True`` (or raising ``StopIteration``).
 
 What every run shares (:class:`Run`): the callbacks' results are checked once,
 at ``x₀`` (:meth:`Problem.validate`); a trial point whose cost is not finite
@@ -22,13 +23,15 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
 from typing import Any
 
 import numpy as np
 
 from ._values import safe_norm
+from ._verbosity import Progress, check_verbosity
+from .least_squares_problem import LeastSquaresProblem
 from .problem import Problem
 from .result import History, IterationInfo, OptimizeResult, Status
 
@@ -39,6 +42,9 @@ Callback = Callable[[IterationInfo], Any]
 _EPS = float(np.finfo(float).eps)
 ROUNDOFF = 1e3 * _EPS
 """Cost changes below ``ROUNDOFF·max(s, |f|)`` are round-off (:meth:`Run.roundoff`)."""
+LEAST_SQUARES_REL_COST_DECREASE = 1e-5
+"""``rel_cost_decrease`` left unset (``None``) on a :class:`LeastSquaresProblem`: GTSAM's
+``relativeErrorTol``."""
 
 
 @dataclass(frozen=True)
@@ -53,7 +59,9 @@ class StoppingCriteria:
         Stop once ``‖grad f(x)‖ ≤ max(grad_rtol·‖grad f(x₀)‖, grad_atol·s)``: by
         default a gradient a million times smaller than at the start (relative),
         or below ``1e-12·s`` (a floor, so that a start at a critical point stops at
-        once), with ``s`` the cost scale below.
+        once), with ``s ≤ 1`` the cost scale below. For an absolute test as in
+        SciPy's ``gtol`` or pymanopt's ``min_gradient_norm``, pass
+        ``grad_rtol=0, grad_atol=tol`` (absolute for costs of order one or more).
     min_step
         Stop once a step has norm below this (rejected steps record ``nan``) — or,
         for the trust region, its radius. This stop is success
@@ -63,7 +71,11 @@ class StoppingCriteria:
     rel_cost_decrease
         Stop once an accepted iteration decreases the cost by less than this
         fraction, ``(f_prev − f) ≤ rel_cost_decrease·max(s, |f_prev|)``
-        (SE-Sync uses 1e-6 with ``s = 1``); 0 disables the test.
+        (SE-Sync uses 1e-6 with ``s = 1``; GTSAM 1e-5); 0 disables the test.
+        ``None`` (the default) lets the problem decide (:meth:`for_problem`):
+        ``1e-5`` (:data:`LEAST_SQUARES_REL_COST_DECREASE`, GTSAM's default) on a
+        :class:`~manopt_lie.optim.LeastSquaresProblem` — whatever the optimizer —
+        and 0 (off) on any other problem.
 
     Notes
     -----
@@ -94,17 +106,28 @@ class StoppingCriteria:
         metadata={"help": "stop when the gradient norm falls below this times the cost scale (at most 1)"},
     )
     min_step: float = field(default=1e-12, metadata={"help": "stop when an accepted step is shorter than this"})
-    rel_cost_decrease: float = field(
-        default=0.0,
-        metadata={"help": "stop when a step lowers the cost by less than this fraction of it (0: never)"},
+    rel_cost_decrease: float | None = field(
+        default=None,
+        metadata={
+            "help": "stop when a step lowers the cost by less than this fraction (0: off; unset: 1e-5 on least squares)"
+        },
     )
 
     def __post_init__(self) -> None:
         for name in ("grad_rtol", "grad_atol", "min_step", "rel_cost_decrease", "max_time"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be non-negative, got {getattr(self, name)!r}")
+            value = getattr(self, name)
+            if not (value is None and name == "rel_cost_decrease") and not value >= 0:
+                raise ValueError(f"{name} must be non-negative, got {value!r}")
         if self.max_iterations < 0:
             raise ValueError(f"max_iterations must be non-negative, got {self.max_iterations}")
+
+    def for_problem(self, problem: Problem) -> StoppingCriteria:
+        """This rule with ``rel_cost_decrease`` decided, if unset (``None``): ``1e-5`` on a
+        :class:`~manopt_lie.optim.LeastSquaresProblem`, 0 otherwise (``self`` if it is set)."""
+        if self.rel_cost_decrease is not None:
+            return self
+        default = LEAST_SQUARES_REL_COST_DECREASE if isinstance(problem, LeastSquaresProblem) else 0.0
+        return replace(self, rel_cost_decrease=default)
 
 
 STOPPING_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(StoppingCriteria))
@@ -122,10 +145,18 @@ class Run:
         ``max(grad_rtol·‖g₀‖, grad_atol·s)``.
     rejected_nonfinite : int
         Trial points whose cost was not finite (counted as ``+inf``).
+
+    ``stopping`` is used as given: :meth:`Optimizer.solve` passes the optimizer's rule
+    decided for the problem (:meth:`StoppingCriteria.for_problem`). ``progress``
+    prints the table of ``verbosity`` (:class:`~._verbosity.Progress`).
     """
 
-    def __init__(self, name: str, problem: Problem, stopping: StoppingCriteria, callback: Callback | None) -> None:
+    def __init__(
+        self, name: str, problem: Problem, stopping: StoppingCriteria, callback: Callback | None,
+        progress: Progress | None = None,
+    ) -> None:  # fmt: skip
         self.name, self.problem, self.stopping, self.callback = name, problem, stopping, callback
+        self.progress = progress
         self.manifold = problem.manifold
         self.nfev = self.ngev = self.nhev = 0
         self.start = time.perf_counter()
@@ -204,12 +235,16 @@ class Run:
         if not self._records:
             self.scale = min(1.0, max(abs(f), grad_norm * self.manifold.typical_dist))
             self.grad_tol = max(self.stopping.grad_rtol * grad_norm, self.stopping.grad_atol * self.scale)
+            if self.progress is not None:
+                self.progress.start(self.problem, self.stopping, self.grad_tol)
         now = self.elapsed()
         self._records.append((f, grad_norm, step, now))
         self._x = x
         for key, value in extra.items():
             self._extra.setdefault(key, [math.nan] * (len(self._records) - 1)).append(value)
         logger.debug("%s %4d  f = %.12g  |grad| = %.3e  step = %.3e", self.name, self.nit, f, grad_norm, step)
+        if self.progress is not None:
+            self.progress.row(self.nit, f, grad_norm, step, now)
         if self.callback is None:
             return False
         info = IterationInfo(self.nit, x, f, grad_norm, step, now, dict(extra))
@@ -251,9 +286,11 @@ class Run:
         f, grad_norm = (records[-1, 0], records[-1, 1]) if len(records) else (math.nan, math.nan)
         res = OptimizeResult(
             x, float(f), float(grad_norm), self.nit, self.nfev, self.ngev, self.nhev,
-            self.elapsed(), status, status.value, history,
+            self.elapsed(), status, status.message, history,
         )  # fmt: skip
         logger.info("%s: %s", self.name, res)
+        if self.progress is not None:
+            self.progress.end(res)
         return res
 
     def interrupted(self, x0: Any) -> OptimizeResult:
@@ -264,21 +301,28 @@ class Run:
 class Optimizer(ABC):
     """Base class: settings in ``__init__``, one ``solve`` for every problem."""
 
-    def __init__(self, *, stopping: StoppingCriteria | None = None, **fields: Any) -> None:
-        """Keep the stopping rule: ``stopping``, or ``StoppingCriteria(**fields)``.
+    def __init__(self, *, stopping: StoppingCriteria | None = None, verbosity: int = 0, **fields: Any) -> None:
+        """Keep the stopping rule: ``stopping``, or ``StoppingCriteria(**fields)``; and the verbosity.
 
         Parameters
         ----------
         stopping : StoppingCriteria, optional
             The whole rule.
+        verbosity : {0, 1, 2}
+            What ``solve`` prints to stderr (pymanopt's habit): 0 nothing, 1 a line
+            at the start and the result at the end, 2 also one table row per
+            iteration — iteration, cost, gradient norm, step, time
+            (:class:`~._verbosity.Progress`).
         **fields
-            Or some of its fields (``max_iterations=…``), the others at their defaults.
+            Or some of the rule's fields (``max_iterations=…``), the others at their defaults.
 
         Raises
         ------
         TypeError
             If both are given, ``stopping`` is not a ``StoppingCriteria``, or a
             keyword is not a field (naming it).
+        ValueError
+            If ``verbosity`` is not 0, 1 or 2.
         """
         name = type(self).__name__
         unknown = [k for k in fields if k not in STOPPING_FIELDS]
@@ -295,11 +339,17 @@ class Optimizer(ABC):
         elif not isinstance(stopping, StoppingCriteria):
             raise TypeError(f"{name}: stopping must be a StoppingCriteria, got {type(stopping).__name__}")
         self.stopping = stopping
+        self.verbosity = check_verbosity(verbosity, name)
 
     def solve(self, problem: Problem, x0: Any, callback: Callback | None = None) -> OptimizeResult:
         """Minimize ``problem`` from ``x0``.
 
-        The callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
+        ``callback(info)`` (an :class:`IterationInfo`) is called after every
+        iteration, the initial point included; returning a true value or raising
+        ``StopIteration`` ends the run cleanly with ``Status.CALLBACK``. The
+        stopping rule is the optimizer's, decided for the problem
+        (:meth:`StoppingCriteria.for_problem`: ``rel_cost_decrease`` unset is 1e-5
+        on a least-squares problem). The callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
         (Ctrl-C) during the run is not raised: ``solve`` returns the last accepted
         point with ``Status.INTERRUPTED`` (``converged`` false). Non-finite costs
         at trial points reject them; nothing raises ``FloatingPointError``, and
@@ -325,7 +375,9 @@ class Optimizer(ABC):
         problem.manifold.check_point(x0, "x0")
         if not problem.has_gradient:
             raise NotImplementedError(f"{type(self).__name__} needs a gradient: build the Problem with egrad or rgrad")
-        run = Run(type(self).__name__, problem, self.stopping, callback)
+        name = type(self).__name__
+        progress = Progress(name, self.verbosity) if self.verbosity else None
+        run = Run(name, problem, self.stopping.for_problem(problem), callback, progress)
         try:
             # Non-finite values are handled (rejected, or reported by a status or an error),
             # so NumPy's warnings about producing them would only be noise.

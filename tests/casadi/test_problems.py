@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from manopt_lie import SE2, SE3, SO3, NonFiniteError, Rn, ShapeError
+from manopt_lie import SE2, SE3, SO3, NonFiniteError, ShapeError
 from manopt_lie.casadi import SymSE2, SymSE3, SymSO3
 from manopt_lie.casadi.problems import (
     SymbolicFactor,
@@ -17,7 +17,7 @@ from manopt_lie.casadi.problems import (
     problem_from_casadi,
 )
 from manopt_lie.check import check_gradient, check_hessian
-from manopt_lie.manifolds import LieGroupManifold, Power, Sphere
+from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power, Product, Sphere
 from manopt_lie.optim import Factor, LeastSquaresProblem, LevenbergMarquardt, Status, TrustRegion
 
 
@@ -177,7 +177,7 @@ def test_range_bearing_localization(rng, make, exact):
     assert check_gradient(problem, x0, rng=0).passed
     if exact:
         assert check_hessian(problem, x0, rng=0).passed
-    res = make(grad_rtol=1e-12).solve(problem, x0)
+    res = make(grad_rtol=1e-12, rel_cost_decrease=0).solve(problem, x0)  # converge past the 1e-5 rule
     assert res.success, res
     assert res.fun < 1e-18
     assert truth.dist(res.x[0]) < 1e-9
@@ -217,7 +217,7 @@ def test_pose_graph_factors_match_numpy_jacobians(rng):
     assert ours.cost == pytest.approx(ref.cost, rel=1e-12)
     np.testing.assert_allclose(ours.grad, ref.grad, atol=1e-11)
     np.testing.assert_allclose(ours.hessian.toarray(), ref.hessian.toarray(), atol=1e-11)
-    res = LevenbergMarquardt(grad_rtol=1e-12).solve(problem, x)
+    res = LevenbergMarquardt(grad_rtol=1e-12, rel_cost_decrease=0).solve(problem, x)  # past the 1e-5 rule
     assert res.success and truth.dist(res.x).max() < 1e-9
 
 
@@ -249,14 +249,20 @@ def test_jit_compiled_functions_agree(rng):
 
 def test_bad_manifolds():
     f = lambda r: ca.trace(r)
-    with pytest.raises(TypeError, match="LieGroupManifold"):
-        problem_from_casadi(Sphere(3), f)
-    with pytest.raises(TypeError, match="no symbolic twin of R3"):
-        problem_from_casadi(LieGroupManifold(Rn(3)), f)
+    with pytest.raises(TypeError, match="two"):
+        problem_from_casadi(Euclidean(2, 3, 4), f)
     with pytest.raises(TypeError, match="integer n"):
         problem_from_casadi(Power(LieGroupManifold(SO3), (2, 3)), f)
+    with pytest.raises(TypeError, match="Power of a Product"):
+        problem_from_casadi(Power(Product(Sphere(3), Euclidean(2)), 2), f)
+    with pytest.raises(TypeError, match="single manifolds"):
+        problem_from_casadi(Product(Power(Sphere(3), 2), Euclidean(2)), f)
+    with pytest.raises(TypeError, match="Blocks"):
+        problem_from_casadi(Blocks({"a": Power(Euclidean(2), 2)}), f)
     with pytest.raises(TypeError, match="n = 1 for a single element"):
         least_squares_from_casadi(LieGroupManifold(SO3), [0], lambda r: SymSO3.log(r))
+    with pytest.raises(TypeError, match="tangent coordinates"):
+        least_squares_from_casadi(Power(Sphere(3), 2), [0], lambda x: x)
 
 
 def test_bad_costs_and_residuals():

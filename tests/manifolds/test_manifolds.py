@@ -13,6 +13,7 @@ from manopt_lie.lie import RnGroup
 from manopt_lie.manifolds import (
     Blocks,
     Euclidean,
+    Grassmann,
     LieGroupManifold,
     Manifold,
     MissingOperationError,
@@ -34,6 +35,7 @@ CASES: list[tuple[Manifold, str]] = [
     (Sphere(4), "gradient"),
     (Stiefel(5, 2), "gradient"),
     (Stiefel(4, 3, retraction="polar"), "gradient"),
+    (Grassmann(5, 2, retraction="polar"), "pullback"),
     (SpecialOrthogonal(2), "gradient"),
     (SpecialOrthogonal(3), "gradient"),
     (SpecialOrthogonal(4), "gradient"),

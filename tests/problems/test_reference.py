@@ -43,7 +43,8 @@ COSTS = ["chordal", "geodesic"]
 
 def _ours(graph, x0, cost, robust=None):
     """TrustRegion on the chordal cost, Levenberg-Marquardt on the geodesic one, run to a tight gradient."""
-    optimizer = TrustRegion(grad_rtol=1e-10) if cost == "chordal" else LevenbergMarquardt(grad_rtol=1e-10)
+    tight = {"grad_rtol": 1e-10, "rel_cost_decrease": 0.0}  # no early stop on the cost decrease
+    optimizer = TrustRegion(**tight) if cost == "chordal" else LevenbergMarquardt(**tight)
     return optimizer.solve(graph.problem(cost, robust=robust), x0)
 
 
