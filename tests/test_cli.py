@@ -132,7 +132,8 @@ def test_solve_json_and_outputs(graph_file: Path, tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert SOLVE_KEYS <= set(summary)
-    assert summary["converged"] and summary["status"] == "gradient_norm" and summary["n"] == 64
+    # LM on a least-squares problem: the cost-decrease rule (1e-5, GTSAM's) is on by default
+    assert summary["converged"] and summary["status"] == "cost_decrease" and summary["n"] == 64
     assert summary["fun"] < summary["initial_fun"]
     solution = g2o.read(out)
     graph = g2o.read(graph_file)
