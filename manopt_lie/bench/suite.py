@@ -13,7 +13,7 @@ sparse symbolic analysis is part of the time).
 A task is self-contained (a catalogue :class:`~manopt_lie.problems.catalogue.Entry`, which
 pickles, and names): :func:`run_task` builds the problem where it runs, so that
 :mod:`.distributed` can ship tasks to other processes and machines; problems themselves
-(locks, per-thread state) never travel.
+(locks, per-thread state) never travel. :func:`manopt_lie.bench.campaign.execute` runs a plan.
 """
 
 from __future__ import annotations
@@ -240,58 +240,3 @@ def run_task(task: Task, settings: Settings, data_dir: Path | str | None = None,
     landmark_positions = getattr(loaded.spec, "landmark_positions", None)
     landmarks = None if landmark_positions is None else np.asarray(landmark_positions(x))
     return Outcome(task, run, x, positions, landmarks)
-
-
-def execute(
-    tasks: Sequence[Task],
-    *,
-    settings: Settings | None = None,
-    data_dir: Path | str | None = None,
-    on_task: Callable[[Task], None] | None = None,
-    on_result: Callable[[Outcome], None] | None = None,
-    done: Sequence[Run] = (),
-    scheduler: str | None = None,
-    workers: int | None = None,
-) -> SuiteResult:
-    """Run ``tasks`` (from :func:`plan`), except those whose runs are in ``done`` (a resumed
-    campaign's; they are reported as they are).
-
-    Parameters
-    ----------
-    on_task, on_result : callables, optional
-        Called before each task (sequential runs only) and with each :class:`Outcome` as it
-        arrives (progress, the results store).
-    scheduler : None, ``"dask"`` or a Dask scheduler address (``"tcp://host:8786"``)
-        ``None`` runs the tasks one after another in this process; otherwise
-        :func:`~manopt_lie.bench.distributed.execute_dask` runs them on a
-        ``dask.distributed`` cluster (``"dask"``: a local one of ``workers`` processes).
-        The final costs are the same either way; the times are each worker's.
-
-    Raises
-    ------
-    FileNotFoundError, CatalogueError
-        As :func:`run_task`.
-    """
-    settings = settings or Settings()
-    finished = {run.task_key: run for run in done}
-    todo = [task for task in tasks if task.key not in finished]
-    out = SuiteResult()
-    if scheduler is None:
-        cache = Cache()
-        for task in todo:
-            if on_task is not None:
-                on_task(task)
-            outcome = run_task(task, settings, data_dir, cache)
-            out.outcomes[task.key] = outcome
-            if on_result is not None:
-                on_result(outcome)
-        out.loaded = cache.loaded
-    else:
-        from .distributed import execute_dask  # dask is imported only when asked for
-
-        for outcome in execute_dask(todo, settings, data_dir, scheduler=scheduler, workers=workers,
-                                    on_result=on_result):  # fmt: skip
-            out.outcomes[outcome.task.key] = outcome
-    runs = {key: o.run for key, o in out.outcomes.items()} | finished
-    out.runs = [runs[task.key] for task in tasks if task.key in runs]
-    return out

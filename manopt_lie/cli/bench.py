@@ -13,10 +13,11 @@ from typing import Any
 
 from manopt_lie.bench import peers as peer_adapters
 from manopt_lie.bench import report
+from manopt_lie.bench.campaign import execute
 from manopt_lie.bench.figures import FORMATS
 from manopt_lie.bench.record import Run, status_words
 from manopt_lie.bench.store import Store, StoreError
-from manopt_lie.bench.suite import Outcome, Settings, SuiteResult, Task, execute, plan, run_task
+from manopt_lie.bench.suite import Outcome, Settings, SuiteResult, Task, plan, run_task
 from manopt_lie.optim import OPTIMIZERS
 from manopt_lie.problems.catalogue import SUITES, Entry, load_suite
 from manopt_lie.problems.graph import Graph

@@ -7,8 +7,9 @@ import pickle
 
 import pytest
 
+from manopt_lie.bench.campaign import execute
 from manopt_lie.bench.store import Store
-from manopt_lie.bench.suite import Settings, execute, plan
+from manopt_lie.bench.suite import Settings, plan
 from manopt_lie.optim import StoppingCriteria
 from manopt_lie.problems.catalogue import Entry
 
