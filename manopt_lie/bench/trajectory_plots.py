@@ -98,8 +98,8 @@ def _panel(ax: Axes, view: tuple[int, int], pos: np.ndarray, odometry: np.ndarra
     if truth is not None:
         ax.plot(truth[:, a], truth[:, b], "--", color="0.55", lw=0.9, zorder=1)
     if len(loops):
-        alpha = 0.55 if len(loops) < 500 else 0.3
-        ax.add_collection(LineCollection(p[loops], colors="tab:orange", linewidths=0.7, alpha=alpha, zorder=2))
+        alpha, width = (0.85, 1.0) if len(loops) < 500 else (0.35, 0.5)
+        ax.add_collection(LineCollection(p[loops], colors="tab:orange", linewidths=width, alpha=alpha, zorder=2))
     if error is not None and norm is not None:
         segments = LineCollection(p[odometry], cmap=CMAP, norm=norm, linewidths=1.6, zorder=3)
         segments.set_array(0.5 * (error[odometry[:, 0]] + error[odometry[:, 1]]))
