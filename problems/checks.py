@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,7 +19,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .landmarks import LandmarkGraph
+from .graph import MeasurementGraph
+
+if TYPE_CHECKING:
+    from .landmarks import LandmarkGraph
 
 __all__ = ["LintReport", "lint"]
 
@@ -287,7 +290,7 @@ def lint(graph: Any) -> LintReport:
     every pose estimate than the largest measured range), duplicate observations, and
     information matrices of observations and priors as for edges.
     """
-    if isinstance(graph, LandmarkGraph):
+    if not isinstance(graph, MeasurementGraph):  # poses and landmarks: more than one kind of variable
         return _lint_landmarks(graph)
     ids: IntArray = graph.ids  # type: ignore[assignment]
     n, m, edges = graph.n, graph.m, graph.edges

@@ -70,7 +70,7 @@ import dataclasses
 
 from .. import checks
 from ..checks import LintReport
-from ..graph import MeasurementGraph
+from ..graph import Graph, MeasurementGraph
 from ..landmarks import LandmarkGraph
 from ..pose_graph import PoseGraph
 from ._reader import QUATERNION_TOL, Stats, parse
@@ -152,7 +152,7 @@ def lint(
     ParseError
         If the file cannot be read (nothing else: a graph read is always linted).
     """
-    if isinstance(graph_or_file, MeasurementGraph | LandmarkGraph):
+    if isinstance(graph_or_file, Graph):
         return checks.lint(graph_or_file)
     graph, stats = _read(graph_or_file, None, quaternion_tol)
     return dataclasses.replace(

@@ -10,6 +10,7 @@ import numpy as np
 
 from manopt_lie.atomic import atomic_write
 
+from ..graph import MeasurementGraph
 from ..landmarks import LandmarkGraph
 from ..pose_graph import PoseGraph
 from ._format import edge_lines, fix_line, vertex_lines
@@ -65,7 +66,7 @@ def write(
 
 def dumps(graph: PoseGraph | LandmarkGraph, estimates: Any = None) -> str:
     """The text :func:`write` writes."""
-    if isinstance(graph, LandmarkGraph):
+    if not isinstance(graph, MeasurementGraph):  # poses and landmarks
         return landmark_text(graph, estimates)
     out = io.StringIO()
     poses = graph.poses if estimates is None else estimates
