@@ -94,6 +94,8 @@ def _finish_axes(axes: Sequence[Axes], runs: Sequence[Run], *, log_y: bool) -> N
         _symlog(ax, "x", values)
         if log_y:
             ax.set_yscale("log")
+        else:
+            ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(True, which="both", alpha=0.3)
 
 
@@ -183,7 +185,8 @@ def convergence(runs: Sequence[Run], path: Path | str, *, reference: Reference |
         _finish_axes((ax_it, ax_right), runs, log_y=_log_worthy(_costs(runs)))
     if not single:
         ax_right.set_ylabel(ax_it.get_ylabel())
-    fig.legend(*ax_it.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
+    if not single:
+        fig.legend(*ax_it.get_legend_handles_labels(), loc="outside right upper", fontsize="small")
     fig.suptitle(f"{first.instance} — {first.cost} cost (n={first.n}, m={first.m}); {what}")
     return save(fig, path)
 
