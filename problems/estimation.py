@@ -6,8 +6,9 @@ library's right Jacobians (CONVENTIONS §3–4): a state ``X ~ N(X̂, P)`` means
 ``X = X̂ ⊕ τ = X̂·Exp(τ)``, ``τ ~ N(0, P)``, ``P`` in the right (local) tangent of ``X̂``,
 translation first.
 
-- :class:`ErrorStateEKF` — prediction ``X̂ ← X̂ ⊕ u``, ``P ← F P Fᵀ + G Q Gᵀ`` with
-  ``F = Ad_{Exp(u)}⁻¹``, ``G = Jr(u)`` (the Jacobians of ``X ⊕ u``, Solà eqs. 80–81);
+- :class:`ErrorStateEKF` and :class:`Motion` — prediction ``X̂ ← X̂ ⊕ u``,
+  ``P ← F P Fᵀ + G Q Gᵀ`` with ``F = Ad_{Exp(u)}⁻¹``, ``G = Jr(u)`` (the Jacobians of
+  ``X ⊕ u``, Solà eqs. 80–81);
   correction by innovations ``y`` with Jacobians ``H`` (Kalman gain, Joseph form), and
   :meth:`~ErrorStateEKF.correct_points` for known points (beacons) seen in the state's
   frame, ``z = X⁻¹ b + v``. Batched over leading axes, so Monte-Carlo runs filter at once.
@@ -46,8 +47,8 @@ __all__ = [
 ]
 
 
-def _swap(a: FloatArray) -> FloatArray:
-    return np.swapaxes(a, -1, -2)
+def _swap(a: NDArray[np.floating[Any]]) -> FloatArray:
+    return np.swapaxes(a, -1, -2).astype(np.float64, copy=False)
 
 
 def _symmetric(a: FloatArray) -> FloatArray:
@@ -75,8 +76,17 @@ class Motion:
 
     @classmethod
     def of(cls, group: type[LieGroup], u: ArrayLike, Q: ArrayLike) -> Motion:
-        """The terms of increments ``u`` ``(*B, n)`` with noise covariances ``Q`` ``(*B', n, n)``
-        (from ``identity.rplus(u, jac=True)``: the Jacobians of ``X ⊕ u`` do not depend on ``X``)."""
+        """The terms of increments ``u`` with noise covariances ``Q``, in one batched call.
+
+        From ``identity.rplus(u, jac=True)``: the Jacobians of ``X ⊕ u`` do not depend on ``X``.
+
+        Parameters
+        ----------
+        group : type of LieGroup
+        u : array ``(*B, n)``
+        Q : array ``(*B', n, n)``
+            Broadcasting against ``B``.
+        """
         t = np.asarray(u, dtype=np.float64)
         increment, F, G = group.identity(t.shape[:-1]).rplus(t, jac=True)
         W = G @ np.asarray(Q, dtype=np.float64) @ _swap(G)
@@ -146,7 +156,14 @@ class ErrorStateEKF:
         return self.propagate(Motion.of(type(self.x), u, Q))
 
     def propagate(self, motion: Motion) -> ErrorStateEKF:
-        """``X̂ ← X̂·Exp(u)``, ``P ← F P Fᵀ + W`` with the terms of a :class:`Motion`."""
+        """``X̂ ← X̂·Exp(u)``, ``P ← F P Fᵀ + W``: :meth:`predict` with precomputed terms.
+
+        Parameters
+        ----------
+        motion : Motion
+            One step's terms (``Motion.of(group, u, Q)[k]``), or a batch broadcasting
+            against the filter's.
+        """
         P = motion.F @ self.P @ _swap(motion.F) + motion.W
         return ErrorStateEKF(self.x @ motion.increment, _symmetric(P), None)
 
