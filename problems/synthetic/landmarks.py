@@ -1,9 +1,9 @@
 """Synthetic landmark worlds: a robot driving laps among landmarks it sees within its range.
 
 The graph-SLAM example of the seed notes with a known truth: poses along a circle (2-D)
-or a helix (3-D), expressed in the first pose's frame (``X₀ = I``), odometry between consecutive poses, and relative-point observations
-``z = X⁻¹ l + η`` of the landmarks within ``sensor_range`` (the ``max_observations``
-nearest), which close the loops. Noise model as for pose graphs
+or a helix (3-D), expressed in the first pose's frame (``X₀ = I``), odometry between
+consecutive poses, and relative-point observations ``z = X⁻¹ l + η`` of the landmarks
+within ``sensor_range`` (the ``max_observations`` nearest), which close the loops. Noise model as for pose graphs
 (:mod:`manopt_lie.problems.synthetic`): odometry ``Z = (X_i⁻¹X_j) ⊕ ε``,
 ``ε ~ N(0, diag(σ_t² I, σ_R² I))``; points ``η ~ N(0, σ_p² I)`` in the pose's frame; the
 information matrices are the inverse covariances, so the cost is the exact negative
@@ -97,13 +97,14 @@ def landmark_world(
         Of the circle (2-D) or helix (3-D); landmarks are uniform in the annulus
         ``[radius/2, 3 radius/2]`` (3-D: times the helix's height range, widened by ``radius/4``).
     sensor_range : float > 0
+        Landmarks no pose would see are moved within range of a random pose, so each is seen.
     max_observations : int ≥ 1
         Per pose, at most this many (the nearest) landmarks are seen.
     translation_noise, rotation_noise, point_noise : float ≥ 0
     outlier_rate : float in [0, 1]
     prior : bool
-        Add a prior on pose 0 at its true value (with the odometry's information) instead of
-        holding it fixed.
+        Add a prior on pose 0 (mean ``X₀ ⊕ ε``, ``ε`` drawn with the odometry's noise, and
+        the odometry's information) instead of holding it fixed.
     seed : int
 
     Returns
@@ -144,6 +145,12 @@ def landmark_world(
     z = truth[odometry[:, 0]].between(truth[odometry[:, 1]]).rplus(rng.standard_normal((n - 1, dim)) * sigma)
     information = np.broadcast_to(np.diag(_weights(sigma)), (n - 1, dim, dim)).copy()
 
+    # A landmark no pose sees would be undetermined: move it within range of a random pose.
+    lonely = np.setdiff1d(np.arange(count), _nearest(positions, points, reach, k)[:, 1])
+    if lonely.size:
+        offset_dir = rng.standard_normal((lonely.size, d))
+        offset_dir *= (0.5 * reach / np.linalg.norm(offset_dir, axis=1))[:, None]
+        points[lonely] = positions[rng.integers(0, n, lonely.size)] + offset_dir
     seen = _nearest(positions, points, reach, k)
     if not len(seen):
         raise ValueError(f"no landmark within sensor_range={reach} of any pose: widen it")
@@ -153,6 +160,8 @@ def landmark_world(
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     measured[outliers] = direction * reach * rng.uniform(0, 1, (len(direction), 1)) ** (1 / d)
 
+    # The prior's mean is sampled from its own noise, like every other measurement.
+    prior_mean = truth[:1].rplus(rng.standard_normal((1, dim)) * sigma) if prior else None
     offset = 10 ** len(str(n))
     poses = PoseGraph(group, odometry, z, information, name=f"landmarks{d}d-{n}x{count}-seed{seed}",
                       fixed=np.zeros(0 if prior else 1, dtype=np.int64))  # fmt: skip
@@ -160,7 +169,7 @@ def landmark_world(
     priors = np.zeros(1 if prior else 0, dtype=np.int64)
     graph = LandmarkGraph(
         poses, landmark_ids=offset + np.arange(count), observations=seen, points=measured,
-        point_information=point_info, prior_poses=priors, prior_means=truth[priors] if prior else None,
+        point_information=point_info, prior_poses=priors, prior_means=prior_mean,
         prior_information=information[:1] if prior else None, name=poses.name,
     )  # fmt: skip
     manifold = Blocks({"poses": Power(LieGroupManifold(group), n), "landmarks": Power(Euclidean(d), count)})
