@@ -5,7 +5,8 @@ has no field for is written in an equivalent form:
 
 - 2-D sensor offsets (``EDGE_SE2_XY`` has none) are folded into the points: with
   ``S = (R_S, t_S)``, ``z' = S·z = R_S z + t_S`` and ``Ω' = R_S Ω R_Sᵀ`` give the same cost,
-  since ``z − (X S)⁻¹ l = R_Sᵀ (z' − X⁻¹ l)``;
+  since ``z − (X S)⁻¹ l = R_Sᵀ (z' − X⁻¹ l)`` (and ``offset_ids``, which 2-D files have no
+  field for, are dropped);
 - 3-D sensor offsets become ``PARAMS_SE3OFFSET`` lines: one per ``graph.offset_ids`` (the
   file's parameter ids, checked to name one offset each) or, without them, one per distinct
   offset; priors name a parameter holding the identity (one of those, or a new one).
