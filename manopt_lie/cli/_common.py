@@ -26,7 +26,7 @@ EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141
 
 EXIT_CODES = f"""exit codes:
-  {EXIT_OK}    success: solve converged; bench and demo ran every run
+  {EXIT_OK}    success: solve converged; bench and demo ran every run; eval computed the errors
   {EXIT_NOT_CONVERGED}    solve ran but did not converge, or a run failed
   {EXIT_USAGE}    bad arguments or input (one line on stderr, or a JSON error with --json)
   {EXIT_INTERRUPTED}  interrupted (Ctrl-C): nothing is written
