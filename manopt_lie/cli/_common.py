@@ -29,7 +29,7 @@ EXIT_CODES = f"""exit codes:
   {EXIT_OK}    success: solve converged; bench and demo ran every run; eval computed the errors
   {EXIT_NOT_CONVERGED}    solve ran but did not converge, or a run failed
   {EXIT_USAGE}    bad arguments or input (one line on stderr, or a JSON error with --json)
-  {EXIT_INTERRUPTED}  interrupted (Ctrl-C): nothing is written
+  {EXIT_INTERRUPTED}  interrupted (Ctrl-C): nothing is written (bench --store keeps the runs it finished)
   {EXIT_BROKEN_PIPE}  the reader of the output went away (as for any Unix tool killed by SIGPIPE)"""
 
 
