@@ -115,6 +115,18 @@ class Graph(ABC):
     def to_g2o(self, x: Any) -> tuple[Any, Any]:
         """The graph and the vertex estimates that represent the solution ``x`` in a g2o file."""
 
+    def figure_layers(self, x: Any, covariances: Any = None) -> dict[str, Any]:
+        """What a trajectory figure draws besides the main block's positions: for
+        :func:`manopt_lie.bench.plots.trajectory`'s keywords (``covariances``: the poses'
+        position covariances in the world frame, ``R Σ_ρρ Rᵀ``, from marginals in the right
+        tangent — :func:`~manopt_lie.optim.marginal_covariances` over every variable)."""
+        if covariances is None or self.positions(x) is None:
+            return {}
+        return {"covariances": _world_positions(self._poses_of(x), covariances.stacked()[: self.n])}
+
+    def _poses_of(self, x: Any) -> LieGroup:
+        return x  # type: ignore[no-any-return]
+
     @property
     def vertex_ids(self) -> IntArray:
         """The source's id of every variable, in the problem's global order (block after block)."""
@@ -405,6 +417,15 @@ class MeasurementGraph(Graph):
         if not self.has_translations:
             return None
         return np.asarray(x.as_matrix()[:, : self.d, self.d])
+
+
+def _world_positions(poses: LieGroup, covariances: FloatArray) -> FloatArray:
+    """``R Σ_ρρ Rᵀ``: the position block of right-tangent pose covariances in the world frame
+    (``X Exp(τ)`` moves the position by ``R ρ`` to first order)."""
+    m = poses.as_matrix()
+    d = m.shape[-1] - 1
+    r = m[:, :d, :d]
+    return np.asarray(r @ covariances[:, :d, :d] @ np.swapaxes(r, 1, 2))
 
 
 def _usable(weights: FloatArray) -> FloatArray:

@@ -36,7 +36,7 @@ from manopt_lie.optim.losses import RobustLoss
 
 from . import costs
 from .costs import InformationMatrixError
-from .graph import Graph
+from .graph import Graph, _world_positions
 from .pose_graph import PoseGraph
 
 FloatArray = NDArray[np.float64]
@@ -240,6 +240,17 @@ class LandmarkGraph(Graph):
 
     def landmark_positions(self, x: Values) -> FloatArray:
         return np.asarray(x["landmarks"])
+
+    def _poses_of(self, x: Values) -> LieGroup:
+        return x["poses"]  # type: ignore[no-any-return]
+
+    def figure_layers(self, x: Values, covariances: Any = None) -> dict[str, Any]:
+        """The landmarks and, with marginals, the 95 % ellipses of poses and landmarks."""
+        layers: dict[str, Any] = {"landmarks": self.landmark_positions(x)}
+        if covariances is not None:
+            layers["covariances"] = _world_positions(x["poses"], covariances.stacked("poses"))
+            layers["landmark_covariances"] = covariances.stacked("landmarks")
+        return layers
 
     def to_g2o(self, x: Values) -> tuple[LandmarkGraph, Values]:
         """This graph with the estimates ``x`` (every vertex is written back)."""

@@ -55,7 +55,8 @@ def add_parser(commands: Any) -> None:
                        "{vertex id: d×d matrix}: right (local) perturbation X ⊕ τ, translation first "
                        "(x, y, θ / x, y, z, θx, θy, θz), the fixed vertices (the gauge) as zeros")
     solve.add_argument("--plot", type=Path, metavar="FIG.png",
-                       help="trajectories before/after (poses) or convergence (rotations)")
+                       help="trajectories before/after (poses; landmarks, and 95%% covariance ellipses with "
+                       "--covariances) or convergence (rotations); png, pdf or svg by the extension")
     solve.add_argument("--quaternion-tol", type=_common.number(float, positive=True), default=None, metavar="X",
                        help="accept (and normalize) quaternions whose norm is within X of 1 "
                        "(default: the reader's, see manopt_lie.problems.g2o.read)")
@@ -108,11 +109,14 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         _common.write_text(args.out, g2o.dumps(*graph.to_g2o(result.x)))
         summary["written"].append(str(args.out))
+    marginals = None
     if args.covariances is not None:
-        _common.write_text(args.covariances, _common.json_text(_covariances(graph, problem, result.x), indent=1))
+        marginals = marginal_covariances(problem, result.x, variables=np.arange(len(graph.vertex_ids)))
+        document = {str(i): marginals[v].tolist() for v, i in enumerate(graph.vertex_ids.tolist())}
+        _common.write_text(args.covariances, _common.json_text(document, indent=1))
         summary["written"].append(str(args.covariances))
     if args.plot is not None:
-        _plot(args, graph, x0, result, summary)
+        _plot(args, graph, x0, result, summary, marginals)
         summary["written"].append(str(args.plot))
     code = _common.EXIT_OK if result.status.converged else _common.EXIT_NOT_CONVERGED
     if args.json:
@@ -129,22 +133,17 @@ def run(args: argparse.Namespace) -> int:
     return code
 
 
-def _covariances(graph: Graph, problem: Any, x: Any) -> dict[str, Any]:
-    """``{vertex id: covariance}`` of every variable (:func:`~manopt_lie.optim.marginal_covariances`)."""
-    ids = graph.vertex_ids
-    cov = marginal_covariances(problem, x, variables=np.arange(len(ids)))
-    return {str(i): cov[v].tolist() for v, i in enumerate(ids.tolist())}
-
-
-def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary: dict[str, Any]) -> None:
-    """Trajectories before and after where the variables have positions, else the convergence."""
+def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary: dict[str, Any],
+          marginals: Any) -> None:  # fmt: skip
+    """Trajectories before and after where the variables have positions (with the graph's
+    extra layers: landmarks, covariance ellipses when computed), else the convergence."""
     from manopt_lie.bench import plots
     from manopt_lie.bench.record import Run
 
     before, after = graph.positions(x0), graph.positions(result.x)
     if before is not None and after is not None:
         title = f"{args.file.name}: {args.init} initialization → {args.optimizer} ({summary['cost']})"
-        plots.trajectory(before, after, graph.edges, args.plot, title)
+        plots.trajectory(before, after, graph.edges, args.plot, title, **graph.figure_layers(result.x, marginals))
         return
     run = Run(args.file.stem, graph.kind, summary["cost"], args.optimizer, graph.n, graph.m, result.nit,
               result.time, summary["init_time"], result.fun, summary["status"], summary["converged"],
