@@ -38,10 +38,12 @@ from .lie import (
     right_to_left_covariance,
     sample,
 )
+from .minimize import minimize
 
 __version__ = "0.2.0.dev0"
 
 __all__ = [
+    "minimize",
     "LieGroup",
     "SO2",
     "SO3",

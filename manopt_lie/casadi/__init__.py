@@ -4,12 +4,14 @@
   ``compose``, ``inverse``, ``act``, ``rplus``, ``rminus``, … on CasADi matrices,
   agreeing with the numpy kernels to round-off;
 * :mod:`.problems` — :func:`problem_from_casadi` and
-  :func:`least_squares_from_casadi`: a cost or residual written once with those
-  operations becomes a :class:`~manopt_lie.optim.Problem` (Riemannian gradient
-  and Hessian) or a :class:`~manopt_lie.optim.LeastSquaresProblem` (right
-  Jacobians), evaluated on batches by mapped ``casadi.Function``\\ s. These are
-  the only spellings: :mod:`manopt_lie.optim` does not import CasADi (casadi
-  builds on optim, never the reverse).
+  :func:`least_squares_from_casadi`: a cost or residual written once with CasADi
+  operations becomes a :class:`~manopt_lie.optim.Problem` (exact gradient and
+  Hessian) on any manifold of :mod:`manopt_lie.manifolds` — through the chart
+  ``X ⊕ δ`` on Lie groups, as Euclidean derivatives converted by the manifold on the
+  others — or a :class:`~manopt_lie.optim.LeastSquaresProblem` (right Jacobians),
+  evaluated on batches by mapped ``casadi.Function``\\ s (:mod:`._compile`,
+  :mod:`._spaces`). These are the only spellings: :mod:`manopt_lie.optim` does not
+  import CasADi (casadi builds on optim, never the reverse).
 """
 
 from .lie import Matrix, SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic

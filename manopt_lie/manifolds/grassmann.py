@@ -113,6 +113,9 @@ class Grassmann(EmbeddedManifold):
         return _qf(rng.standard_normal(batch + self.point_shape))
 
     def random_tangent(self, x: FloatArray, rng: np.random.Generator | int | None = None) -> FloatArray:
+        """A random unit horizontal vector (zero on ``Gr(n, n)``, a single point)."""
+        if self.dim == 0:
+            return np.zeros(np.shape(x))
         return self.unit(x, self.proj(x, np.random.default_rng(rng).standard_normal(np.shape(x))))
 
     def check_point(self, x: Any, name: str = "x") -> None:

@@ -32,6 +32,7 @@ import numpy as np
 from ._values import safe_norm
 from ._verbosity import Progress, check_verbosity
 from .least_squares_problem import LeastSquaresProblem
+from .line_search import LineSearch
 from .problem import Problem
 from .result import History, IterationInfo, OptimizeResult, Status
 
@@ -72,10 +73,13 @@ class StoppingCriteria:
         Stop once an accepted iteration decreases the cost by less than this
         fraction, ``(f_prev − f) ≤ rel_cost_decrease·max(s, |f_prev|)``
         (SE-Sync uses 1e-6 with ``s = 1``; GTSAM 1e-5); 0 disables the test.
-        ``None`` (the default) lets the problem decide (:meth:`for_problem`):
+        ``None`` (the default) lets the run decide (:meth:`for_problem`):
         ``1e-5`` (:data:`LEAST_SQUARES_REL_COST_DECREASE`, GTSAM's default) on a
-        :class:`~manopt_lie.optim.LeastSquaresProblem` — whatever the optimizer —
-        and 0 (off) on any other problem.
+        :class:`~manopt_lie.optim.LeastSquaresProblem` solved by a method with a
+        curvature model (Gauss-Newton, Levenberg-Marquardt, the trust region), whose
+        small decreases mean convergence; 0 (off) on other problems and for the
+        first-order methods (steepest descent, CG), whose small decreases may only
+        mean slow progress.
 
     Notes
     -----
@@ -121,13 +125,14 @@ class StoppingCriteria:
         if self.max_iterations < 0:
             raise ValueError(f"max_iterations must be non-negative, got {self.max_iterations}")
 
-    def for_problem(self, problem: Problem) -> StoppingCriteria:
+    def for_problem(self, problem: Problem, *, first_order: bool = False) -> StoppingCriteria:
         """This rule with ``rel_cost_decrease`` decided, if unset (``None``): ``1e-5`` on a
-        :class:`~manopt_lie.optim.LeastSquaresProblem`, 0 otherwise (``self`` if it is set)."""
+        :class:`~manopt_lie.optim.LeastSquaresProblem` unless ``first_order`` (the optimizer
+        is steepest descent or CG: :attr:`Optimizer.first_order`), 0 otherwise; ``self`` if set."""
         if self.rel_cost_decrease is not None:
             return self
-        default = LEAST_SQUARES_REL_COST_DECREASE if isinstance(problem, LeastSquaresProblem) else 0.0
-        return replace(self, rel_cost_decrease=default)
+        on = isinstance(problem, LeastSquaresProblem) and not first_order
+        return replace(self, rel_cost_decrease=LEAST_SQUARES_REL_COST_DECREASE if on else 0.0)
 
 
 STOPPING_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(StoppingCriteria))
@@ -341,6 +346,15 @@ class Optimizer(ABC):
         self.stopping = stopping
         self.verbosity = check_verbosity(verbosity, name)
 
+    @property
+    def first_order(self) -> bool:
+        """Whether the steps follow gradient directions with a line search (``GradientDescent``,
+        ``ConjugateGradient``: optimizers with a :class:`~.line_search.LineSearch` as
+        ``line_search``) rather than a model with curvature (Gauss-Newton,
+        Levenberg-Marquardt, the trust region). A first-order run on a least-squares problem
+        does not get the cost-decrease default (:meth:`StoppingCriteria.for_problem`)."""
+        return isinstance(getattr(self, "line_search", None), LineSearch)
+
     def solve(self, problem: Problem, x0: Any, callback: Callback | None = None) -> OptimizeResult:
         """Minimize ``problem`` from ``x0``.
 
@@ -349,7 +363,8 @@ class Optimizer(ABC):
         ``StopIteration`` ends the run cleanly with ``Status.CALLBACK``. The
         stopping rule is the optimizer's, decided for the problem
         (:meth:`StoppingCriteria.for_problem`: ``rel_cost_decrease`` unset is 1e-5
-        on a least-squares problem). The callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
+        on a least-squares problem, except for steepest descent and CG). The
+        callbacks' results are checked once, at ``x0``. A ``KeyboardInterrupt``
         (Ctrl-C) during the run is not raised: ``solve`` returns the last accepted
         point with ``Status.INTERRUPTED`` (``converged`` false). Non-finite costs
         at trial points reject them; nothing raises ``FloatingPointError``, and
@@ -377,7 +392,8 @@ class Optimizer(ABC):
             raise NotImplementedError(f"{type(self).__name__} needs a gradient: build the Problem with egrad or rgrad")
         name = type(self).__name__
         progress = Progress(name, self.verbosity) if self.verbosity else None
-        run = Run(name, problem, self.stopping.for_problem(problem), callback, progress)
+        stopping = self.stopping.for_problem(problem, first_order=self.first_order)
+        run = Run(name, problem, stopping, callback, progress)
         try:
             # Non-finite values are handled (rejected, or reported by a status or an error),
             # so NumPy's warnings about producing them would only be noise.

@@ -147,8 +147,7 @@ def test_ctrl_c_exits_130_writes_nothing(cube: Path, tmp_path: Path) -> None:
     """Audit: Ctrl-C gave a traceback and no result."""
     out = tmp_path / "out.g2o"
     command = [sys.executable, "-m", "manopt_lie", "solve", cube, "--optimizer", "gd", "--max-iterations",
-               "1000000", "--max-time", "120", "--grad-rtol", "1e-15", "--rel-cost-decrease", "0",
-               "--out", out]  # fmt: skip
+               "1000000", "--max-time", "120", "--grad-rtol", "1e-15", "--out", out]  # fmt: skip
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(4.0)  # imports, reading, then deep inside the solve
     assert proc.poll() is None, proc.communicate()
