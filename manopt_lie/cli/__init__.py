@@ -5,6 +5,7 @@
 - ``manopt-lie solve FILE.g2o``: solve one file, write the result as g2o (:mod:`.solve`).
 - ``manopt-lie bench``: a suite of catalogue instances × optimizers, optional peers and
   the IPOPT reference (:mod:`.bench`).
+- ``manopt-lie eval ape|rpe REF EST``: trajectory errors as evo computes them (:mod:`.eval`).
 
 Exit codes (in every ``--help``): 0 success, 1 not converged (or a run failed), 2 bad
 arguments or input — one line ``manopt-lie <command>: error: …`` on stderr, and with

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from manopt_lie.bench.record import status_words
 from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer, marginal_covariances
 from manopt_lie.problems import KINDS, g2o
 from manopt_lie.problems.graph import Graph
@@ -54,7 +55,7 @@ def add_parser(commands: Any) -> None:
                        help="write the marginal covariance of every vertex at the solution, as JSON "
                        "{vertex id: d×d matrix}: right (local) perturbation X ⊕ τ, translation first "
                        "(x, y, θ / x, y, z, θx, θy, θz), the fixed vertices (the gauge) as zeros")
-    solve.add_argument("--plot", type=Path, metavar="FIG.png",
+    solve.add_argument("--plot", type=Path, metavar="FIG.png|pdf|svg",
                        help="trajectories before/after (poses; landmarks, and 95%% covariance ellipses with "
                        "--covariances) or convergence (rotations); png, pdf or svg by the extension")
     solve.add_argument("--quaternion-tol", type=_common.number(float, positive=True), default=None, metavar="X",
@@ -71,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.file.is_file():
         raise _common.UsageError(f"no such file: {args.file}")
     _common.output_path(args.out, "--out", inputs=[args.file], force=args.force)
-    _common.output_path(args.plot, "--plot", inputs=[args.file])
+    _common.figure_path(args.plot, "--plot", inputs=[args.file])
     _common.output_path(args.covariances, "--covariances", inputs=[args.file])
     tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
     graph = convert(g2o.read(args.file, **tol), args.problem)
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         f"{args.file.name}: {graph.describe()}; "
         f"{cost} cost {summary['initial_fun']:.8g} → {result.fun:.8g} by {args.optimizer} in {result.nit} "
         f"iterations, {result.time:.3f} s (+ {init_time:.3f} s {args.init} initialization)\n"
-        f"status: {result.message}; ‖grad‖ = {result.grad_norm:.3g}"
+        f"status: {status_words(summary['status'])} ({result.message}); ‖grad‖ = {result.grad_norm:.3g}"
     )
     for path in summary["written"]:
         print(f"wrote {path}")
@@ -143,10 +144,13 @@ def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary:
     before, after = graph.positions(x0), graph.positions(result.x)
     if before is not None and after is not None:
         title = f"{args.file.name}: {args.init} initialization → {args.optimizer} ({summary['cost']})"
-        plots.trajectory(before, after, graph.edges, args.plot, title, **graph.figure_layers(result.x, marginals))
+        labels = (f"{args.init} initialization", f"{args.optimizer} solution")
+        plots.trajectory(before, after, graph.edges, args.plot, title, labels=labels,
+                         **graph.figure_layers(result.x, marginals))  # fmt: skip
         return
     run = Run(args.file.stem, graph.kind, summary["cost"], args.optimizer, graph.n, graph.m, result.nit,
               result.time, summary["init_time"], result.fun, summary["status"], summary["converged"],
               result.grad_norm, history_cost=result.history.cost.tolist(),
-              history_time=result.history.time.tolist())  # fmt: skip
+              history_time=result.history.time.tolist(),
+              history_grad_norm=result.history.grad_norm.tolist())  # fmt: skip
     plots.convergence([run], args.plot)
