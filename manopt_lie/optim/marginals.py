@@ -185,6 +185,10 @@ class MarginalCovariances:
     def __len__(self) -> int:
         return int(self.variables.size)
 
+    def __repr__(self) -> str:
+        return (f"MarginalCovariances({len(self)} variables, {len(self.pairs)} pairs, {self.fixed.size} fixed, "
+                f"method={self.method!r}, backend={self.backend!r})")  # fmt: skip
+
     def __iter__(self) -> Iterator[Key]:
         """The requested variables' keys: global indices, or ``(block, i)`` on ``Blocks``."""
         if not self._names.blocked:

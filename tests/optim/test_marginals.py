@@ -89,6 +89,7 @@ def test_fixed_variables_are_reported_and_zero(pose_graph):
     _, problem, x, _ = pose_graph
     cov = marginal_covariances(problem, x, [0, 3], pairs=[(0, 3)])
     assert cov.fixed.tolist() == [0] and cov.variables.tolist() == [0, 3]
+    assert repr(cov).startswith("MarginalCovariances(2 variables, 1 pairs, 1 fixed, method='solve'")
     assert not cov[0].any() and not cov.cross(0, 3).any() and cov[3].any()
 
 
