@@ -14,8 +14,10 @@
   import CasADi (casadi builds on optim, never the reverse).
 """
 
-from .lie import Matrix, SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3, symbolic
+from .lie import Matrix, SymbolicGroup, SymSE2, SymSE3, SymSO2, SymSO3
+from .lie_extended import SymS3, SymSE23, SymSim2, SymSim3
 from .problems import SymbolicFactor, SymbolicTerm, least_squares_from_casadi, problem_from_casadi
+from .twins import symbolic
 
 __all__ = [
     "Matrix",
@@ -24,6 +26,10 @@ __all__ = [
     "SymSO3",
     "SymSE2",
     "SymSE3",
+    "SymSim3",
+    "SymSim2",
+    "SymSE23",
+    "SymS3",
     "symbolic",
     "SymbolicTerm",
     "SymbolicFactor",

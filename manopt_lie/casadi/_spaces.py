@@ -27,7 +27,8 @@ from ..manifolds import LieGroupManifold, Power, Product
 from ..manifolds.base import Manifold
 from ..manifolds.embedded import EmbeddedManifold
 from ._compile import Kind, Matrix
-from .lie import SymbolicGroup, symbolic
+from .lie import SymbolicGroup
+from .twins import symbolic
 
 __all__ = ["Part", "Space", "space_of"]
 

@@ -1,4 +1,5 @@
-"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices (Sim3, Sim2, SE23, S3, bundles: ``.lie_extended``).
+"""Symbolic twins of SO(2), SO(3), SE(2), SE(3) on CasADi matrices (Sim3, Sim2, SE23, S3,
+bundles: ``.lie_extended``; ``symbolic(G)``: ``.twins``).
 
 Elements are CasADi matrices in the numpy groups' matrix form (CONVENTIONS §2), constant
 entries built from constants; tangents are ``dim×1`` columns, translation first. Every
@@ -20,10 +21,10 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ShapeError
-from ..lie import SE2, SE3, SO2, SO3, BundleGroup, LieGroup, RnGroup, _series
+from ..lie import SE2, SE3, SO2, SO3, LieGroup, _series
 from ..lie._series import Backend
 
-__all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "symbolic", "Matrix", "CASADI", "horner"]
+__all__ = ["SymbolicGroup", "SymSO2", "SymSO3", "SymSE2", "SymSE3", "Matrix", "CASADI", "horner"]
 # The coefficient functions of ``lie._series``, on CasADi matrices.
 __all__ += ["sinc", "cosc", "sinc3", "jinv_coef", "q_coef2", "q_coef3", "half_cot", "sinc_half", "cos_half"]
 __all__ += ["atan_ratio", "atan2_ratio", "emoment0", "emoment1", "emoment2"]
@@ -477,23 +478,3 @@ class SymSE3(_SymTransform):
         return ca.vertcat(top, ca.horzcat(ca.DM.zeros(3, 3), r))
 
 
-_TWINS: dict[type[LieGroup], type[SymbolicGroup]] = {SO2: SymSO2, SO3: SymSO3, SE2: SymSE2, SE3: SymSE3}
-
-
-def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
-    """The twin of a numpy group class (``symbolic(SO3) is SymSO3``): SO2, SO3, SE2, SE3, Sim3, Sim2,
-    SE23, S3 and bundles of these and ``Rn(n)`` (:mod:`.lie_extended`); ``TypeError`` otherwise."""
-    from . import lie_extended as ext  # imports this module: load it on first use
-
-    twin = _TWINS.get(group) or ext.TWINS.get(group) if isinstance(group, type) else None
-    if twin is None and isinstance(group, type) and issubclass(group, BundleGroup):
-        # Rⁿ parts have a twin inside bundles (ext.sym_rn); alone, Rⁿ needs none (plain CasADi vectors).
-        parts = [ext.sym_rn(p) if issubclass(p, RnGroup) else symbolic(p) for p in group.parts]
-        twin = ext.sym_bundle(group, tuple(parts))
-    if twin is None:
-        name = getattr(group, "__name__", repr(group))
-        raise TypeError(
-            f"symbolic: no symbolic twin of {name}; supported groups are SO2, SO3, SE2, SE3, Sim3, Sim2, "
-            "SE23, S3 and Bundles of these and Rn(n)"
-        )
-    return twin
