@@ -182,11 +182,14 @@ class LieGroupManifold(Manifold):
         return np.zeros(x.batch_shape + (self.dim,))
 
     def check_point(self, x: Any, name: str = "x") -> None:
+        """A finite element of the group (``x.validate``: an element built by hand or unpickled
+        may hold ``nan`` or a non-rotation)."""
         if not isinstance(x, self.group):
             raise ShapeError(
                 f"{name}: a point of {self!r} is a {self.group.__name__} element "
                 f"(e.g. {self.group.__name__}.from_matrix(...)), got {type(x).__name__}"
             )
+        x.validate(name=name)
 
     def batch_shape_of(self, x: LieGroup) -> tuple[int, ...]:
         return x.batch_shape

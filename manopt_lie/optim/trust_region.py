@@ -174,9 +174,11 @@ class TrustRegion(Optimizer):
                 return _InnerResult(eta, math.nan, j, "non-finite")
             alpha = rz / d_hd if d_hd != 0 else math.inf
             e_pe_new = e_pe + 2.0 * alpha * e_pd + alpha * alpha * d_pd
+            if not d_pd > 0:  # a preconditioner that is not positive definite (or round-off): stop at η
+                return result(eta, h_eta, j, "indefinite preconditioner")
             if d_hd <= 0 or e_pe_new >= radius_sq:
                 # Follow d to the boundary: ‖η + τ d‖ = Δ.
-                tau = (-e_pd + math.sqrt(e_pd * e_pd + d_pd * (radius_sq - e_pe))) / d_pd
+                tau = (-e_pd + math.sqrt(max(e_pd * e_pd + d_pd * (radius_sq - e_pe), 0.0))) / d_pd
                 reason = "negative curvature" if d_hd <= 0 else "boundary"
                 return result(eta + d * tau, h_eta + hd * tau, j, reason)
             eta, h_eta, e_pe = eta + d * alpha, h_eta + hd * alpha, e_pe_new
