@@ -43,6 +43,14 @@ gradient ``−Σ rᵢ``, and its trust region gets the same finite-difference He
 as ours (pymanopt's numpy backend has none built in). The last table gives the
 cost of one evaluation in each library, to tell the optimizers' overhead from
 that of the cost functions.
+
+**CasADi-derived twins** (``--no-casadi`` skips them): each problem is also built by
+``problem_from_casadi`` from its cost alone — the Karcher residual ``½‖Log(RᵀRᵢ)‖²``
+as one mapped edge per sample (exact Hessian blocks, so the trust region needs no
+finite differences), ``xᵀAx`` on the sphere and ``tr(XᵀAXN)`` on the Stiefel manifold
+as one expression in ``MX`` symbols (Euclidean gradient and Hessian-vector products,
+converted by the manifold). Our optimizers run on both; the table "CasADi-derived /
+hand-written" gives the ratio of times per iteration (goal ≤ 1.5).
 """
 
 from __future__ import annotations
@@ -59,10 +67,12 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from manopt_lie import SO3
 from manopt_lie.bench.timing import interleaved, median_time
+from manopt_lie.casadi import SymSO3, problem_from_casadi
 from manopt_lie.manifolds import LieGroupManifold, Sphere, Stiefel
 from manopt_lie.optim import ConjugateGradient, GradientDescent, OptimizeResult, Problem, TrustRegion
 
@@ -96,6 +106,7 @@ class Case:
     optimum: float
     make_pymanopt: Callable[[Any, Counts], tuple[Any, Any]]  # (pymanopt module, counters) ↦ (problem, x0)
     from_pymanopt: Callable[[Any], Any]  # a pymanopt point ↦ ours
+    make_casadi: Callable[[], Problem]  # the same cost through problem_from_casadi
 
 
 def _symmetric(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -178,9 +189,15 @@ def karcher_case(n: int, rng: np.random.Generator) -> Case:
         p = pymanopt.Problem(manifold, p_cost, riemannian_gradient=p_grad, riemannian_hessian=p_hess)
         return p, x0.as_matrix().copy()
 
+    def make_casadi() -> Problem:
+        return problem_from_casadi(
+            LieGroupManifold(SO3), lambda r, ri: 0.5 * ca.sumsqr(SymSO3.rminus(ri, r)),
+            variables=np.zeros((len(mats), 1), dtype=np.int64), data=(mats,),
+        )  # fmt: skip
+
     return Case(
         "karcher", f"Karcher mean, SO(3), {n:,} rotations", problem, x0, 0.5 * float(np.sum(tau**2)),
-        make_pymanopt, lambda r: SO3.from_matrix(r),
+        make_pymanopt, lambda r: SO3.from_matrix(r), make_casadi,
     )  # fmt: skip
 
 
@@ -213,7 +230,7 @@ def rayleigh_case(n: int, rng: np.random.Generator) -> Case:
 
     return Case(
         "rayleigh", f"Rayleigh quotient, S^{n - 1}", problem, x0, float(np.linalg.eigvalsh(a)[0]),
-        make_pymanopt, lambda x: x,
+        make_pymanopt, lambda x: x, lambda: problem_from_casadi(Sphere(n), lambda x: ca.mtimes([x.T, a, x])),
     )  # fmt: skip
 
 
@@ -248,7 +265,10 @@ def brockett_case(n: int, p: int, rng: np.random.Generator) -> Case:
 
         return pymanopt.Problem(manifold, cost, euclidean_gradient=egrad, euclidean_hessian=ehess), x0.copy()
 
-    return Case("brockett", f"Brockett, St({n}, {p})", problem, x0, optimum, make_pymanopt, lambda x: x)
+    def make_casadi() -> Problem:
+        return problem_from_casadi(Stiefel(n, p), lambda x: ca.trace(ca.mtimes([x.T, a, x, big_n])))
+
+    return Case("brockett", f"Brockett, St({n}, {p})", problem, x0, optimum, make_pymanopt, lambda x: x, make_casadi)
 
 
 # ---- running ----------------------------------------------------------------------
@@ -276,13 +296,22 @@ def time_interleaved(jobs: list[Timed], repeat: int) -> list[dict[str, Any]]:
     return rows
 
 
+def warmed(problem: Problem, x0: Any) -> Problem:
+    """``problem`` after one cost, gradient and Hessian product at ``x0``: CasADi builds each
+    function on first use, which belongs to the build time, not to the first timed run."""
+    problem.cost(x0)
+    problem.hess(x0, problem.grad(x0))
+    return problem
+
+
 def our_grad_norm(case: Case, x: Any) -> float:
     m = case.problem.manifold
     g = case.problem.grad(x)
     return float(np.sqrt(np.sum(m.inner(x, g, g))))
 
 
-def ours_job(case: Case, key: str, args: argparse.Namespace) -> Timed:
+def ours_job(case: Case, key: str, args: argparse.Namespace, problem: Problem | None = None) -> Timed:
+    problem = case.problem if problem is None else problem
     opt = OURS[key](
         max_iterations=args.max_iterations, max_time=args.max_time,
         grad_rtol=GRAD_RTOL, grad_atol=0.0, min_step=MIN_STEP,
@@ -296,7 +325,7 @@ def ours_job(case: Case, key: str, args: argparse.Namespace) -> Timed:
             "status": res.status.name.lower(),
         }  # fmt: skip
 
-    return Timed(lambda: opt.solve(case.problem, case.x0), row)
+    return Timed(lambda: opt.solve(problem, case.x0), row)
 
 
 def _pymanopt_status(text: str) -> str:
@@ -346,9 +375,15 @@ def pymanopt_job(pymanopt: Any, case: Case, key: str, args: argparse.Namespace) 
     return Timed(run, row)
 
 
-def run_case(case: Case, key: str, pymanopt: Any, args: argparse.Namespace) -> list[dict[str, Any]]:
-    """Rows for our optimizer ``key`` on ``case`` and, when available, pymanopt's."""
+def run_case(
+    case: Case, key: str, pymanopt: Any, args: argparse.Namespace, symbolic: Problem | None
+) -> list[dict[str, Any]]:
+    """Rows for our optimizer ``key`` on ``case``, on its CasADi twin ``symbolic`` and, when
+    available, pymanopt's."""
     jobs, libraries = [ours_job(case, key, args)], ["manopt_lie"]
+    if symbolic is not None:
+        jobs.append(ours_job(case, key, args, symbolic))
+        libraries.append("manopt_lie+casadi")
     failed: dict[str, Any] | None = None
     if pymanopt is not None:
         try:
@@ -365,12 +400,14 @@ def run_case(case: Case, key: str, pymanopt: Any, args: argparse.Namespace) -> l
     return rows
 
 
-def evaluation_costs(case: Case, pymanopt: Any, repeat: int) -> dict[str, Any]:
+def evaluation_costs(case: Case, pymanopt: Any, repeat: int, symbolic: Problem | None) -> dict[str, Any]:
     """Milliseconds per cost and per gradient evaluation at ``x0`` (what an iteration is made of)."""
     row: dict[str, Any] = {"problem": case.name}
-    row["ours_cost_ms"] = 1e3 * median_time(lambda: case.problem.cost(case.x0), repeat)[0]
-    # A fresh copy per call: Problem caches the Euclidean gradient of the last point it saw.
-    row["ours_grad_ms"] = 1e3 * median_time(lambda: case.problem.grad(copy.copy(case.x0)), repeat)[0]
+    for label, problem in (("ours", case.problem), ("casadi", symbolic)):
+        if problem is not None:
+            row[f"{label}_cost_ms"] = 1e3 * median_time(lambda p=problem: p.cost(case.x0), repeat)[0]
+            # A fresh copy per call: Problem caches the Euclidean gradient of the last point it saw.
+            row[f"{label}_grad_ms"] = 1e3 * median_time(lambda p=problem: p.grad(copy.copy(case.x0)), repeat)[0]
     if pymanopt is None:
         return row
 
@@ -446,6 +483,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-iterations", type=int, default=10_000, help="iteration cap, both libraries")
     parser.add_argument("--max-time", type=float, default=120.0, help="seconds per run, both libraries")
     parser.add_argument("--no-pymanopt", action="store_true", help="skip pymanopt even if installed")
+    parser.add_argument("--no-casadi", action="store_true", help="skip the CasADi-derived twins")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args(argv)
@@ -465,13 +503,31 @@ def main(argv: list[str] | None = None) -> int:
     for case in cases:
         print(f"  {case.name}: {case.title}, optimum {case.optimum:.12g}")
 
+    symbolic: dict[str, Problem | None] = {}
+    builds: list[dict[str, Any]] = []
+    for case in cases:
+        symbolic[case.name] = None
+        if not args.no_casadi:
+            seconds, symbolic[case.name] = median_time(lambda c=case: warmed(c.make_casadi(), c.x0), 1)
+            builds.append({"problem": case.name, "build_s": seconds})
     rows: list[dict[str, Any]] = []
     ratios: list[dict[str, Any]] = []
+    twins: list[dict[str, Any]] = []
     for case in cases:
         for key in OURS:
-            pair = run_case(case, key, pymanopt, args)
-            rows.extend(pair)
-            if len(pair) == 2 and "time_s" in pair[0] and "time_s" in pair[1]:
+            runs = run_case(case, key, pymanopt, args, symbolic[case.name])
+            rows.extend(runs)
+            by = {r.get("library"): r for r in runs if "time_s" in r}
+            hand, sym = by.get("manopt_lie"), by.get("manopt_lie+casadi")
+            if hand is not None and sym is not None:
+                twins.append({
+                    "problem": case.name, "optimizer": key, "hand_s": hand["time_s"], "casadi_s": sym["time_s"],
+                    "hand_nit": hand["nit"], "casadi_nit": sym["nit"],
+                    "per_iteration_ratio": (sym["time_s"] / max(sym["nit"], 1))
+                    / (hand["time_s"] / max(hand["nit"], 1)),
+                })  # fmt: skip
+            pair = [by[lib] for lib in ("manopt_lie", "pymanopt") if lib in by]
+            if len(pair) == 2:
                 ours, theirs = pair
                 ratios.append({
                     "problem": case.name, "optimizer": key,
@@ -481,13 +537,17 @@ def main(argv: list[str] | None = None) -> int:
                     "per_iteration_ratio": (ours["time_s"] / max(ours["nit"], 1))
                     / (theirs["time_s"] / max(theirs["nit"], 1)),
                 })  # fmt: skip
-    evals = [evaluation_costs(case, pymanopt, max(3, args.repeat)) for case in cases]
+    evals = [evaluation_costs(case, pymanopt, max(3, args.repeat), symbolic[case.name]) for case in cases]
 
     fmt = {"time_s": ".3f", "fun": ".10g", "optimum": ".10g", "gap": ".1e", "grad_norm": ".1e", "grad_tol": ".1e"}
     print_table("Runs (grad_norm in manopt_lie's metric at the final point)", rows, fmt)
     if ratios:
         rfmt = {"ours_s": ".3f", "pymanopt_s": ".3f", "ratio": ".2f", "per_iteration_ratio": ".2f"}
         print_table("Time ratio ours / pymanopt (goal <= 0.2)", ratios, rfmt)
+    if twins:
+        tfmt = {"hand_s": ".3f", "casadi_s": ".3f", "per_iteration_ratio": ".2f"}
+        print_table("CasADi-derived / hand-written, same optimizer (goal: per-iteration ratio <= 1.5)", twins, tfmt)
+        print_table("Building the CasADi twins (s)", builds, {"build_s": ".2f"})
     print_table("Evaluation costs at x0 (ms)", evals, {k: ".2f" for k in evals[0] if k != "problem"})
     if pymanopt is None:
         print(f"\nNote: {note}. Install it (pip install pymanopt) to compare.")
@@ -501,7 +561,7 @@ def main(argv: list[str] | None = None) -> int:
                 "load_end": _load(),
             },
             "problems": [{"name": c.name, "title": c.title, "optimum": c.optimum} for c in cases],
-            "runs": rows, "ratios": ratios, "evaluations": evals,
+            "runs": rows, "ratios": ratios, "casadi": twins, "casadi_build": builds, "evaluations": evals,
         }  # fmt: skip
         with open(args.json, "w") as f:
             json.dump(out, f, indent=2)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from math import prod
@@ -142,22 +143,25 @@ def _options(jit: bool) -> dict[str, Any]:
 
 
 class Batched:
-    """``fn.map(m)`` called on C-contiguous ``(m, nnz)`` numpy arrays through a zero-copy buffer."""
+    """``fn.map(m)`` called on C-contiguous ``(m, nnz)`` numpy arrays through a zero-copy buffer
+    (one buffer per function: calls from several threads take turns)."""
 
     def __init__(self, fn: ca.Function, m: int) -> None:
         self._fn = fn.map(m) if m > 1 else fn
         self._buffer, self._run = self._fn.buffer()
         self._shapes = [(m, fn.nnz_out(i)) for i in range(fn.n_out())]
+        self._lock = threading.Lock()
 
     def __call__(self, *args: FloatArray) -> list[FloatArray]:
         # The buffer reads raw memory: every argument must be a C-contiguous float64 (m, nnz) array.
         # (casadi's stubs list a size argument that its SWIG wrapper takes from the buffer itself)
-        for i, a in enumerate(args):
-            self._buffer.set_arg(i, a.data)  # type: ignore[call-arg]
         outs = [np.empty(s) for s in self._shapes]
-        for i, o in enumerate(outs):
-            self._buffer.set_res(i, o.data)  # type: ignore[call-arg]
-        self._run()
+        with self._lock:
+            for i, a in enumerate(args):
+                self._buffer.set_arg(i, a.data)  # type: ignore[call-arg]
+            for i, o in enumerate(outs):
+                self._buffer.set_res(i, o.data)  # type: ignore[call-arg]
+            self._run()
         return outs
 
 

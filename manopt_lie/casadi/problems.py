@@ -121,23 +121,25 @@ class _ChartEvaluator:
         return float(sum(float(np.sum(t("value", flats)[0])) for t in self.terms))
 
     def grad(self, x: Any) -> FloatArray:
-        if self._grad is None or self._grad[0] is not x:
+        memo = self._grad  # read once: another thread may replace it
+        if memo is None or memo[0] is not x:
             flats, acc = self.space.flats(x), self.space.zeros()
             for t in self.terms:
                 t.scatter_add(t("gradient", flats)[0], acc)
-            self._grad = (x, self.space.shaped(acc))
-        return cast(FloatArray, self._grad[1]).copy()
+            memo = self._grad = (x, self.space.shaped(acc))
+        return cast(FloatArray, memo[1]).copy()
 
     def hess(self, x: Any, v: Any) -> FloatArray:
-        if self._hess is None or self._hess[0] is not x:
+        memo = self._hess
+        if memo is None or memo[0] is not x:
             flats = self.space.flats(x)
             blocks = []
             for t in self.terms:
                 ad = int(t.offsets[-1])
                 blocks.append(t("hessian", flats)[0].reshape(t.m, ad, ad))
-            self._hess = (x, blocks)
+            memo = self._hess = (x, blocks)
         rows, acc = self.space.rows(v, "tangent vector"), self.space.zeros()
-        for t, h in zip(self.terms, self._hess[1], strict=True):
+        for t, h in zip(self.terms, memo[1], strict=True):
             local = np.concatenate(t.gather(rows), axis=1)[:, :, None]  # (m, a·d, 1)
             t.scatter_add(np.matmul(h, local)[:, :, 0], acc)
         return cast(FloatArray, self.space.shaped(acc))
