@@ -198,11 +198,12 @@ class LandmarkGraph(Graph):
 
     @property
     def manifold(self) -> Blocks:
-        """``Blocks(poses=Power(SE(d), n), landmarks=Power(Euclidean(d), L))``."""
-        return Blocks({
-            "poses": Power(LieGroupManifold(self.group), self.n),
-            "landmarks": Power(Euclidean(self.d), self.n_landmarks),
-        })  # fmt: skip
+        """``Blocks(poses=Power(SE(d), n), landmarks=Power(Euclidean(d), L))`` (without the
+        landmarks block when there are none: a pose graph with priors)."""
+        blocks = {"poses": Power(LieGroupManifold(self.group), self.n)}
+        if self.n_landmarks:
+            blocks["landmarks"] = Power(Euclidean(self.d), self.n_landmarks)
+        return Blocks(blocks)
 
     @property
     def vertex_ids(self) -> IntArray:
@@ -210,9 +211,13 @@ class LandmarkGraph(Graph):
         return np.concatenate([self.poses.ids, self.landmark_ids])
 
     def describe(self) -> str:
+        def count(k: int, what: str) -> str:
+            return f"{k} {what if k == 1 else what + 's'}"
+
         return (
-            f"{self.n} poses, {self.n_landmarks} landmarks; {self.poses.m} relative poses, "
-            f"{len(self.observations)} observations, {len(self.prior_poses)} priors"
+            f"{count(self.n, 'pose')}, {count(self.n_landmarks, 'landmark')}; "
+            f"{count(self.poses.m, 'relative pose')}, {count(len(self.observations), 'observation')}, "
+            f"{count(len(self.prior_poses), 'prior')}"
         )
 
     def __repr__(self) -> str:
@@ -223,12 +228,14 @@ class LandmarkGraph(Graph):
 
     def values(self, poses: LieGroup, landmarks: Any) -> Values:
         """A point of :attr:`manifold` from poses ``(n,)`` and landmarks ``(L, d)``."""
+        if not self.n_landmarks:
+            return self.manifold.values(poses=poses)
         return self.manifold.values(poses=poses, landmarks=np.asarray(landmarks, dtype=np.float64))
 
     @property
     def estimates(self) -> Values | None:
         """The source's estimates of every variable, if it had them all."""
-        if self.poses.poses is None or self.landmarks is None:
+        if self.poses.poses is None or (self.landmarks is None and self.n_landmarks):
             return None
         return self.values(self.poses.poses, self.landmarks)
 
@@ -239,7 +246,8 @@ class LandmarkGraph(Graph):
         return np.asarray(x["poses"].as_matrix()[:, : self.d, self.d])
 
     def landmark_positions(self, x: Values) -> FloatArray:
-        return np.asarray(x["landmarks"])
+        """The landmarks ``(L, d)`` of ``x``."""
+        return np.asarray(x["landmarks"]) if self.n_landmarks else np.zeros((0, self.d))
 
     def _poses_of(self, x: Values) -> LieGroup:
         return x["poses"]  # type: ignore[no-any-return]
@@ -249,7 +257,8 @@ class LandmarkGraph(Graph):
         layers: dict[str, Any] = {"landmarks": self.landmark_positions(x)}
         if covariances is not None:
             layers["covariances"] = _world_positions(x["poses"], covariances.stacked("poses"))
-            layers["landmark_covariances"] = covariances.stacked("landmarks")
+            if self.n_landmarks:
+                layers["landmark_covariances"] = covariances.stacked("landmarks")
         return layers
 
     def to_g2o(self, x: Values) -> tuple[LandmarkGraph, Values]:

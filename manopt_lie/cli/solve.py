@@ -21,9 +21,13 @@ from manopt_lie.optim import OPTIMIZERS, Status, get_optimizer, marginal_covaria
 from manopt_lie.problems import KINDS, g2o
 from manopt_lie.problems.graph import Graph
 from manopt_lie.problems.kinds import convert
+from manopt_lie.problems.pose_graph import PoseGraph
+from manopt_lie.problems.rotation_averaging import RotationAveraging
 
 from . import _common
 
+CERTIFIABLE = (PoseGraph.kind, RotationAveraging.kind)
+"""The kinds :func:`manopt_lie.problems.certify.certify` applies to (their chordal cost)."""
 COSTS = tuple(dict.fromkeys(c for kind in KINDS.values() for c in kind.graph.costs))
 
 
@@ -51,6 +55,10 @@ def add_parser(commands: Any) -> None:
                        help="write the solution as g2o (atomically; never over the input without --force; "
                        "rotation averaging keeps the file's translations)")
     solve.add_argument("--force", action="store_true", help="allow --out to overwrite the input file")
+    solve.add_argument("--certify", action="store_true",
+                       help="certify the solution's global optimality for the chordal (SE-Sync) cost: the "
+                       "smallest eigenvalue of the dual certificate and a bound on f(x) − f* (pose graphs and "
+                       "rotation averaging)")
     solve.add_argument("--covariances", type=Path, metavar="COV.json",
                        help="write the marginal covariance of every vertex at the solution, as JSON "
                        "{vertex id: d×d matrix}: right (local) perturbation X ⊕ τ, translation first "
@@ -74,12 +82,17 @@ def run(args: argparse.Namespace) -> int:
     _common.output_path(args.out, "--out", inputs=[args.file], force=args.force)
     _common.figure_path(args.plot, "--plot", inputs=[args.file])
     _common.output_path(args.covariances, "--covariances", inputs=[args.file])
+    if args.certify and args.problem is not None and args.problem not in CERTIFIABLE:
+        raise _common.UsageError(f"--certify: certificates exist for {', '.join(CERTIFIABLE)} problems")
     tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
     graph = convert(g2o.read(args.file, **tol), args.problem)
     cost = args.cost or graph.costs[0]
     if cost not in graph.costs:
         raise _common.UsageError(f"--cost {cost}: a {graph.kind} problem offers {', '.join(graph.costs)}")
     start = time.perf_counter()
+    if args.certify and graph.kind not in CERTIFIABLE:
+        raise _common.UsageError(f"--certify: {graph.name} is a {graph.kind} problem; certificates exist for "
+                                 f"{', '.join(CERTIFIABLE)} problems")  # fmt: skip
     x0 = graph.initialize(args.init, seed=args.seed)
     init_time = time.perf_counter() - start
     problem = graph.problem(cost, robust=args.robust)
@@ -110,6 +123,8 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         _common.write_text(args.out, g2o.dumps(*graph.to_g2o(result.x)))
         summary["written"].append(str(args.out))
+    if args.certify:
+        summary["certificate"] = _certificate(graph, result.x)
     marginals = None
     if args.covariances is not None:
         marginals = marginal_covariances(problem, result.x, variables=np.arange(len(graph.vertex_ids)))
@@ -129,9 +144,26 @@ def run(args: argparse.Namespace) -> int:
         f"iterations, {result.time:.3f} s (+ {init_time:.3f} s {args.init} initialization)\n"
         f"status: {status_words(summary['status'])} ({result.message}); ‖grad‖ = {result.grad_norm:.3g}"
     )
+    if args.certify:
+        c = summary["certificate"]
+        verdict = "globally optimal" if c["optimal"] else "NOT certified optimal"
+        print(f"certificate: {verdict} for the chordal cost {c['fun']:.8g}: λ_min(S) ≈ {c['lambda_min']:.3g}, "
+              f"f − f* ≤ {c['gap_bound']:.3g} (rank {c['rank']}, {c['time']:.3f} s); {c['message']}")  # fmt: skip
     for path in summary["written"]:
         print(f"wrote {path}")
     return code
+
+
+def _certificate(graph: Graph, x: Any) -> dict[str, Any]:
+    """:func:`manopt_lie.problems.certify.certify` of ``x`` as JSON-ready numbers."""
+    from manopt_lie.problems.certify import certify
+
+    c = certify(graph, x)
+    return {
+        "optimal": bool(c.optimal), "fun": c.fun, "lambda_min": c.lambda_min, "lambda_lower": c.lambda_lower,
+        "gap_bound": c.gap, "dual_bound": c.dual_bound, "relative_gap": c.relative_gap, "tol": c.tol,
+        "rank": c.rank, "time": c.time, "message": c.message,
+    }  # fmt: skip
 
 
 def _plot(args: argparse.Namespace, graph: Graph, x0: Any, result: Any, summary: dict[str, Any],
