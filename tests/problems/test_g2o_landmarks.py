@@ -428,7 +428,8 @@ def test_round_trip_of_random_landmark_graphs(group, seed, n, count, extra, p):
     np.testing.assert_array_equal(back.offset_ids, graph.offset_ids)
     np.testing.assert_allclose(back.sensor_offsets.as_matrix(), graph.sensor_offsets.as_matrix(), rtol=0, atol=4e-15)
     if p:  # the priors name an identity parameter: the smallest free id, as no sensor is the identity
-        assert {line.split()[2] for line in written.splitlines() if line.startswith("EDGE_SE3_PRIOR")} == {"1"}
+        free = str(int(np.setdiff1d(np.arange(len(graph.offset_ids) + 1), graph.offset_ids)[0]))
+        assert {line.split()[2] for line in written.splitlines() if line.startswith("EDGE_SE3_PRIOR")} == {free}
 
 
 def test_offsets_without_ids_get_one_parameter_per_distinct_offset():
