@@ -47,10 +47,12 @@ that of the cost functions.
 **CasADi-derived twins** (``--no-casadi`` skips them): each problem is also built by
 ``problem_from_casadi`` from its cost alone — the Karcher residual ``½‖Log(RᵀRᵢ)‖²``
 as one mapped edge per sample (exact Hessian blocks, so the trust region needs no
-finite differences), ``xᵀAx`` on the sphere and ``tr(XᵀAXN)`` on the Stiefel manifold
-as one expression in ``MX`` symbols (Euclidean gradient and Hessian-vector products,
-converted by the manifold). Our optimizers run on both; the table "CasADi-derived /
-hand-written" gives the ratio of times per iteration (goal ≤ 1.5).
+finite differences; compiled with ``jit=True`` when ``gcc`` is on the PATH, ``--no-jit``
+to interpret), ``xᵀAx`` on the sphere and ``tr(XᵀAXN)`` on the Stiefel manifold as one
+expression in ``MX`` symbols (Euclidean gradient and Hessian-vector products, converted
+by the manifold; not compiled: the dense ``A`` would be written into the C code).
+Our optimizers run on both; the table "CasADi-derived / hand-written" gives the ratio
+of times per iteration (goal ≤ 1.5).
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ import json
 import math
 import os
 import platform
+import shutil
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -76,6 +79,7 @@ from manopt_lie.casadi import SymSO3, problem_from_casadi
 from manopt_lie.manifolds import LieGroupManifold, Sphere, Stiefel
 from manopt_lie.optim import ConjugateGradient, GradientDescent, OptimizeResult, Problem, TrustRegion
 
+JIT = shutil.which("gcc") is not None  # the Karcher twin compiled (main() may turn it off)
 GRAD_RTOL = 1e-6
 MIN_STEP = 1e-12
 FD_STEP = 2.0**-14  # the finite-difference step of our TrustRegion, reused for pymanopt's Karcher Hessian
@@ -192,7 +196,7 @@ def karcher_case(n: int, rng: np.random.Generator) -> Case:
     def make_casadi() -> Problem:
         return problem_from_casadi(
             LieGroupManifold(SO3), lambda r, ri: 0.5 * ca.sumsqr(SymSO3.rminus(ri, r)),
-            variables=np.zeros((len(mats), 1), dtype=np.int64), data=(mats,),
+            variables=np.zeros((len(mats), 1), dtype=np.int64), data=(mats,), jit=JIT,
         )  # fmt: skip
 
     return Case(
@@ -403,11 +407,15 @@ def run_case(
 def evaluation_costs(case: Case, pymanopt: Any, repeat: int, symbolic: Problem | None) -> dict[str, Any]:
     """Milliseconds per cost and per gradient evaluation at ``x0`` (what an iteration is made of)."""
     row: dict[str, Any] = {"problem": case.name}
+    m = case.problem.manifold
+    points = [case.x0, m.retr(case.x0, 1e-3 * m.random_tangent(case.x0, 0))]
     for label, problem in (("ours", case.problem), ("casadi", symbolic)):
         if problem is not None:
             row[f"{label}_cost_ms"] = 1e3 * median_time(lambda p=problem: p.cost(case.x0), repeat)[0]
-            # A fresh copy per call: Problem caches the Euclidean gradient of the last point it saw.
-            row[f"{label}_grad_ms"] = 1e3 * median_time(lambda p=problem: p.grad(copy.copy(case.x0)), repeat)[0]
+            # Two points in turn: Problem (and the CasADi evaluators) remember the last point's gradient.
+            turn = iter(range(10**9))
+            grad = lambda p=problem: p.grad(copy.copy(points[next(turn) % 2]))
+            row[f"{label}_grad_ms"] = 1e3 * median_time(grad, repeat)[0]
     if pymanopt is None:
         return row
 
@@ -484,11 +492,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-time", type=float, default=120.0, help="seconds per run, both libraries")
     parser.add_argument("--no-pymanopt", action="store_true", help="skip pymanopt even if installed")
     parser.add_argument("--no-casadi", action="store_true", help="skip the CasADi-derived twins")
+    parser.add_argument("--no-jit", action="store_true", help="interpret the Karcher twin instead of compiling it")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args(argv)
     if args.repeat is None:
         args.repeat = 1 if args.quick else 3
+    global JIT
+    JIT = JIT and not args.no_jit
     n_rot, n = (10_000, 200) if args.quick else (100_000, 1000)
 
     pymanopt, note = (None, "pymanopt skipped (--no-pymanopt)") if args.no_pymanopt else _import_pymanopt()
@@ -547,14 +558,14 @@ def main(argv: list[str] | None = None) -> int:
     if twins:
         tfmt = {"hand_s": ".3f", "casadi_s": ".3f", "per_iteration_ratio": ".2f"}
         print_table("CasADi-derived / hand-written, same optimizer (goal: per-iteration ratio <= 1.5)", twins, tfmt)
-        print_table("Building the CasADi twins (s)", builds, {"build_s": ".2f"})
+        print_table(f"Building the CasADi twins (s; Karcher jit={JIT})", builds, {"build_s": ".2f"})
     print_table("Evaluation costs at x0 (ms)", evals, {k: ".2f" for k in evals[0] if k != "problem"})
     if pymanopt is None:
         print(f"\nNote: {note}. Install it (pip install pymanopt) to compare.")
     if args.json:
         out = {
             "settings": {
-                "quick": args.quick, "repeat": args.repeat, "grad_rtol": GRAD_RTOL, "min_step": MIN_STEP,
+                "quick": args.quick, "repeat": args.repeat, "grad_rtol": GRAD_RTOL, "min_step": MIN_STEP, "jit": JIT,
                 "max_iterations": args.max_iterations, "max_time": args.max_time, "seed": args.seed,
                 "pymanopt": note, "python": platform.python_version(), "numpy": np.__version__,
                 "machine": platform.machine(), "cores": os.cpu_count(), "load_start": start_load,

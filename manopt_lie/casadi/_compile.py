@@ -133,6 +133,22 @@ def _cse(expr: Any) -> Any:
     return cse(expr) if cse is not None and isinstance(expr, ca.SX) else expr
 
 
+def _fold_constants(outputs: list[Any], inputs: list[Any]) -> list[Any]:
+    """``MX`` outputs with their constant subexpressions evaluated once, here (CasADi would
+    redo them at every call: reverse mode through ``xᵀAx`` transposes the constant ``A``)."""
+    probe = ca.Function("fold", inputs, outputs)
+    skip = {ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_PARAMETER}
+    old, new = [], []
+    for k in range(probe.n_instructions()):
+        if probe.instruction_id(k) in skip:
+            continue
+        node = probe.instruction_MX(k)
+        if not ca.symvar(node):
+            old.append(node)
+            new.append(ca.MX(ca.evalf(node)))
+    return ca.graph_substitute(outputs, old, new) if old else outputs
+
+
 def _options(jit: bool) -> dict[str, Any]:
     """``casadi.Function`` options: none, or just-in-time compilation by the system's C compiler
     (CasADi's ``"shell"`` compiler; temporary files in the system's temp directory)."""
@@ -247,6 +263,8 @@ class Compiled:
                 label: ca.substitute([ca.densify(o) for o in outs], [wrt], [zero]) for label, outs in outputs.items()
             }
         self._outputs = {label: [_cse(ca.densify(o)) for o in outs] for label, outs in outputs.items()}
+        if sym is ca.MX:
+            self._outputs = {k: _fold_constants(o, self._inputs[k]) for k, o in self._outputs.items()}
         self._functions: dict[str, Batched] = {}
         self.function("value")  # built now, so that free symbols are reported at once
         # Edge e, slot s is point variables[e, s] of array sources[s]: rows scatter-added by
