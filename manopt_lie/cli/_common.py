@@ -91,9 +91,10 @@ def add_stopping(parser: argparse.ArgumentParser, **defaults: Any) -> None:
     for f in dataclasses.fields(StoppingCriteria):
         default = defaults.get(f.name, f.default)
         kind = int if isinstance(f.default, int) else float
+        shown = "set by the optimizer" if default is None else "%(default)s"
         group.add_argument(
             "--" + f.name.replace("_", "-"), dest=f.name, type=number(kind, positive=f.name in _POSITIVE),
-            default=default, metavar="N" if kind is int else "X", help=f"{f.metadata['help']} (default: %(default)s)",
+            default=default, metavar="N" if kind is int else "X", help=f"{f.metadata['help']} (default: {shown})",
         )  # fmt: skip
 
 
@@ -170,6 +171,8 @@ def figure_path(path: Path | None, what: str, *, inputs: Sequence[Path] = ()) ->
     """:func:`output_path` for a figure, whose extension must name its format (``.png``,
     ``.pdf`` or ``.svg``): checked before any work."""
     if path is not None:
+        if path.is_dir():
+            raise UsageError(f"{what} {path} is a directory")
         try:
             figure_format(path)
         except ValueError as error:
