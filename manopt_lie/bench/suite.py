@@ -33,6 +33,7 @@ from manopt_lie.optim import OPTIMIZERS, Status, StoppingCriteria, get_optimizer
 from manopt_lie.problems.catalogue import CatalogueError, Entry, Loaded
 from manopt_lie.problems.pose_graph import PoseGraph
 from manopt_lie.problems.rotation_averaging import RotationAveraging
+from manopt_lie.problems.solvers import GRAPH_SOLVERS
 
 from . import peers as peer_adapters
 from .record import Run, finite, status_name
@@ -114,7 +115,8 @@ def plan(
     ``seeds``, default ``(0,)``), per cost, per solver; peers only where they apply (the kind
     and cost each solves)."""
     for name in optimizers:
-        get_optimizer(name)  # unknown: ValueError listing the choices
+        if name not in GRAPH_SOLVERS:
+            get_optimizer(name)  # unknown: ValueError listing the choices
     for name in peers:
         if name not in peer_adapters.PEERS:
             raise ValueError(f"unknown peer {name!r}; choose from {', '.join(peer_adapters.PEERS)}")
@@ -125,11 +127,16 @@ def plan(
     for entry in entries:
         for seed in starts:
             for cost in entry.costs or ():
-                solvers = [*optimizers, *(p for p in peers if peer_adapters.applies(p, entry.problem, cost))]
+                ours = [s for s in optimizers if s not in GRAPH_SOLVERS or _applies(s, entry.problem, cost)]
+                solvers = [*ours, *(p for p in peers if peer_adapters.applies(p, entry.problem, cost))]
                 if reference and entry.problem in REFERENCE_KINDS:
                     solvers.append(REFERENCE)
                 tasks += [Task(entry, cost, s, init, seed) for s in solvers]
     return tasks
+
+
+def _applies(solver: str, kind: str, cost: str) -> bool:
+    return GRAPH_SOLVERS[solver].applies(kind, cost)
 
 
 def initialize(loaded: Loaded, init: str = "chordal", seed: int | None = None) -> tuple[float, Any]:
@@ -140,10 +147,14 @@ def initialize(loaded: Loaded, init: str = "chordal", seed: int | None = None) -
 
 
 def _ours(task: Task, loaded: Loaded, x0: Any, settings: Settings) -> tuple[Run, Any]:
-    optimizer = get_optimizer(task.solver).make(settings.stopping)
+    graph_solver = GRAPH_SOLVERS.get(task.solver)
+    optimizer = None if graph_solver is not None else get_optimizer(task.solver).make(settings.stopping)
 
     def solve() -> Any:
-        result = optimizer.solve(loaded.spec.problem(task.cost), x0)
+        if graph_solver is not None:
+            result = graph_solver.solve(loaded.spec, x0, settings.stopping)
+        else:
+            result = optimizer.solve(loaded.spec.problem(task.cost), x0)  # type: ignore[union-attr]
         if result.status is Status.INTERRUPTED:  # Ctrl-C ends the campaign, not just this run
             raise KeyboardInterrupt
         return result
@@ -192,7 +203,7 @@ def _record(task: Task, loaded: Loaded, seconds: float, nit: int, fun: float, st
 
 
 def _runner(solver: str) -> Callable[[Task, Loaded, Any, Settings], tuple[Run, Any]]:
-    if solver in OPTIMIZERS:
+    if solver in OPTIMIZERS or solver in GRAPH_SOLVERS:
         return _ours
     return _reference if solver == REFERENCE else _peer
 

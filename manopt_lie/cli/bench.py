@@ -21,8 +21,12 @@ from manopt_lie.bench.suite import Outcome, Settings, SuiteResult, Task, plan, r
 from manopt_lie.optim import OPTIMIZERS
 from manopt_lie.problems.catalogue import SUITES, Entry, load_suite
 from manopt_lie.problems.graph import Graph
+from manopt_lie.problems.solvers import GRAPH_SOLVERS
 
 from . import _common
+
+SOLVERS = (*OPTIMIZERS, *GRAPH_SOLVERS)
+"""``--optimizers`` names: the registry's optimizers and the graph solvers (each runs where it applies)."""
 
 PEER_GROUPS: dict[str, tuple[str, ...]] = {}
 """``--peers`` names: the peer libraries, each with the peer solvers it provides."""
@@ -62,9 +66,10 @@ def add_parsers(commands: Any) -> None:
                        "instances (needs --data-dir); or your own TOML file (default: %(default)s)")  # fmt: skip
     bench.add_argument("--data-dir", type=Path, metavar="DIR",
                        help="where dataset files are (default: $MANOPT_LIE_DATA or ../shared/datasets)")
-    bench.add_argument("--optimizers", type=_common.csv(tuple(OPTIMIZERS)), default=list(OPTIMIZERS),
-                       metavar=",".join(OPTIMIZERS), help="; ".join(f"{e.name}: {e.summary}" for e in
-                                                               OPTIMIZERS.values()) + " (default: all)")  # fmt: skip
+    bench.add_argument("--optimizers", type=_common.csv(SOLVERS), default=list(SOLVERS),
+                       metavar=",".join(SOLVERS), help="; ".join(f"{e.name}: {e.summary}" for e in
+                       (*OPTIMIZERS.values(), *GRAPH_SOLVERS.values())) + " (default: all; each where it "
+                       "applies)")  # fmt: skip
     bench.add_argument("--reference", action="store_true", help="add the CasADi/IPOPT reference solution")
     bench.add_argument("--peers", type=_common.csv(tuple(PEER_GROUPS)), default=[], metavar=",".join(PEER_GROUPS),
                        help="optional peer libraries: " + "; ".join(
@@ -256,7 +261,7 @@ def _publish(result: SuiteResult, entries: Sequence[Entry], settings: Settings, 
 def run_demo(args: argparse.Namespace) -> int:
     _common.output_path(args.out_dir / "results.json", "--out-dir")
     entries = SUITES["demo"]
-    settings, result = _run_suite(entries, args, optimizers=tuple(OPTIMIZERS))
+    settings, result = _run_suite(entries, args, optimizers=SOLVERS)
     out = args.out_dir
     _publish(result, entries, settings, args, title="manopt-lie demo", out=out / "results.json",
              report_path=out / "report.md", plot_dir=out)  # fmt: skip

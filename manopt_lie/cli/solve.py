@@ -23,6 +23,7 @@ from manopt_lie.problems.graph import Graph
 from manopt_lie.problems.kinds import convert
 from manopt_lie.problems.pose_graph import PoseGraph
 from manopt_lie.problems.rotation_averaging import RotationAveraging
+from manopt_lie.problems.solvers import GRAPH_SOLVERS
 
 from . import _common
 
@@ -43,8 +44,8 @@ def add_parser(commands: Any) -> None:
     solve.add_argument("--cost", choices=COSTS,
                        help="geodesic: ½Σ rᵀΩr with r = Log(Z⁻¹Xᵢ⁻¹Xⱼ), GTSAM's error; chordal: SE-Sync's "
                        "Frobenius-norm cost (default: geodesic for pose graphs, chordal for rotations)")
-    optimizers = "; ".join(f"{e.name}: {e.summary}" for e in OPTIMIZERS.values())
-    solve.add_argument("--optimizer", choices=tuple(OPTIMIZERS), default="tr",
+    optimizers = "; ".join(f"{e.name}: {e.summary}" for e in (*OPTIMIZERS.values(), *GRAPH_SOLVERS.values()))
+    solve.add_argument("--optimizer", choices=(*OPTIMIZERS, *GRAPH_SOLVERS), default="tr",
                        help=f"{optimizers} (default: %(default)s)")
     solve.add_argument("--init", choices=Graph.initializations, default="chordal",
                        help="initial guess: chordal relaxation, odometry (spanning tree), random (Haar rotations, "
@@ -86,9 +87,13 @@ def run(args: argparse.Namespace) -> int:
         raise _common.UsageError(f"--certify: certificates exist for {', '.join(CERTIFIABLE)} problems")
     tol = {} if args.quaternion_tol is None else {"quaternion_tol": args.quaternion_tol}
     graph = convert(g2o.read(args.file, **tol), args.problem)
-    cost = args.cost or graph.costs[0]
+    solver = GRAPH_SOLVERS.get(args.optimizer)
+    cost = args.cost or (solver.costs[0] if solver is not None else graph.costs[0])
     if cost not in graph.costs:
         raise _common.UsageError(f"--cost {cost}: a {graph.kind} problem offers {', '.join(graph.costs)}")
+    if solver is not None and not solver.applies(graph.kind, cost):
+        raise _common.UsageError(f"--optimizer {solver.name} solves {', '.join(solver.kinds)} problems with the "
+                                 f"{', '.join(solver.costs)} cost, not a {graph.kind} problem with the {cost} cost")
     start = time.perf_counter()
     if args.certify and graph.kind not in CERTIFIABLE:
         raise _common.UsageError(f"--certify: {graph.name} is a {graph.kind} problem; certificates exist for "
@@ -96,13 +101,13 @@ def run(args: argparse.Namespace) -> int:
     x0 = graph.initialize(args.init, seed=args.seed)
     init_time = time.perf_counter() - start
     problem = graph.problem(cost, robust=args.robust)
-    entry = get_optimizer(args.optimizer)
-    if not entry.accepts_problem(problem):
-        raise _common.UsageError(f"--optimizer {entry.name} needs a {entry.accepts.__name__}")
-    optimizer = entry.make(_common.stopping(args))
     progress = _common.progress(args.quiet)
-    if progress is None:
-        result = optimizer.solve(problem, x0)
+    if solver is not None:
+        if args.robust:
+            raise _common.UsageError(f"--optimizer {solver.name} solves the plain chordal cost: no --robust")
+        result = solver.solve(graph, x0, _common.stopping(args))
+    elif progress is None:
+        result = _optimizer(args.optimizer, problem, args).solve(problem, x0)
     else:
         with progress:
             bar = progress.add_task(f"{args.optimizer} on {args.file.name}", total=args.max_iterations)
@@ -110,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             def show(info: Any) -> None:
                 progress.update(bar, completed=info.iteration, description=f"{args.optimizer}: cost {info.fun:.6g}")
 
-            result = optimizer.solve(problem, x0, callback=show)
+            result = _optimizer(args.optimizer, problem, args).solve(problem, x0, callback=show)
     if result.status is Status.INTERRUPTED:
         raise KeyboardInterrupt  # nothing is written; main reports it and exits 130
     summary = {
@@ -152,6 +157,13 @@ def run(args: argparse.Namespace) -> int:
     for path in summary["written"]:
         print(f"wrote {path}")
     return code
+
+
+def _optimizer(name: str, problem: Any, args: argparse.Namespace) -> Any:
+    entry = get_optimizer(name)
+    if not entry.accepts_problem(problem):
+        raise _common.UsageError(f"--optimizer {entry.name} needs a {entry.accepts.__name__}")
+    return entry.make(_common.stopping(args))
 
 
 def _certificate(graph: Graph, x: Any) -> dict[str, Any]:

@@ -24,13 +24,15 @@ class Status(IntEnum):
 
     The integer codes are stable (they are written to files and compared as
     ints, ``status == 1``); new statuses get new codes. Codes 1–3 are the three
-    convergence tests, the only successes. ``STEP_SIZE`` is issued only where it
+    convergence tests, successes like ``CERTIFIED`` (12). ``STEP_SIZE`` is issued only where it
     is earned: the step (the trust region, Levenberg-Marquardt's damping)
     collapsed at a point where the optimizer's model predicts no decrease the
     cost can resolve; a collapse where the model still promises one — the cost
     and its derivatives disagree, e.g. a wrong gradient — is ``NO_PROGRESS``.
 
     No code is 0, so every status is truthy (``step.status or …`` stays safe).
+    ``CERTIFIED`` (a success) is issued by solvers that prove global optimality (the
+    certifiable staircase of :mod:`manopt_lie.problems.certify`).
     """
 
     GRADIENT_NORM = 1
@@ -44,6 +46,7 @@ class Status(IntEnum):
     NO_PROGRESS = 9
     NON_FINITE = 10
     INTERRUPTED = 11
+    CERTIFIED = 12
 
     @property
     def converged(self) -> bool:
@@ -62,7 +65,7 @@ class Status(IntEnum):
         return str(self) if not spec else format(int(self), spec)
 
 
-_CONVERGED = frozenset({Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE})
+_CONVERGED = frozenset({Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE, Status.CERTIFIED})
 _MESSAGES = {
     Status.GRADIENT_NORM: "the gradient norm fell below the tolerance",
     Status.COST_DECREASE: "the relative cost decrease fell below the tolerance",
@@ -75,6 +78,7 @@ _MESSAGES = {
     Status.NO_PROGRESS: "the step collapsed although the model predicts a decrease (are the derivatives right?)",
     Status.NON_FINITE: "the gradient was not finite at a new point; the run stopped at the last finite one",
     Status.INTERRUPTED: "interrupted (KeyboardInterrupt); the last accepted point is returned",
+    Status.CERTIFIED: "the solution is certified globally optimal",
 }
 
 
