@@ -89,7 +89,7 @@ def test_values_by_name():
 
 
 def test_errors_name_the_block(rng):
-    manifold, factors, x0, _, _ = landmark_world(rng)
+    manifold, factors, _, _, _ = landmark_world(rng)
     odometry, observations = factors
     with pytest.raises(ValueError, match="say which block"):
         LeastSquaresProblem(manifold, [Factor(odometry.variables, odometry.residual)])
@@ -97,7 +97,7 @@ def test_errors_name_the_block(rng):
         LeastSquaresProblem(manifold, [Factor(odometry.variables, odometry.residual, blocks="calibration")])
     far = observations.variables.copy()
     far[4, 1] = 6
-    with pytest.raises(ValueError, match="outside block 'landmarks' 0..5"):
+    with pytest.raises(ValueError, match=r"outside block .landmarks. 0\.\.5"):
         LeastSquaresProblem(manifold, [Factor(far, observations.residual, blocks=observations.blocks)])
     with pytest.raises(ValueError, match="fixed: unknown block"):
         LeastSquaresProblem(manifold, factors, fixed={"cameras": [0]})
