@@ -54,14 +54,20 @@ def _trajectory(n: int, d: int, laps: float, radius: float) -> tuple[Any, FloatA
     return SE3.from_rotation_translation(rotation, positions), positions
 
 
-def _nearest(positions: FloatArray, landmarks: FloatArray, sensor_range: float, k: int) -> IntArray:
+def _distances(positions: FloatArray, landmarks: FloatArray, min_range: float) -> FloatArray:
+    """Pose–landmark distances, ``inf`` below the sensor's ``min_range``."""
+    dist = np.linalg.norm(positions[:, None, :] - landmarks[None, :, :], axis=-1)
+    return np.where(dist < min_range, np.inf, dist)
+
+
+def _nearest(positions: FloatArray, landmarks: FloatArray, sensor_range: float, k: int, min_range: float) -> IntArray:
     """``(pose, landmark)`` pairs: the ``k`` nearest landmarks within range of each pose, computed
     in blocks of poses (memory: a block × landmarks distance matrix)."""
     pairs = []
     block = max(1, 2_000_000 // max(len(landmarks), 1))
     for start in range(0, len(positions), block):  # over blocks of poses, not poses
         p = positions[start : start + block]
-        dist = np.linalg.norm(p[:, None, :] - landmarks[None, :, :], axis=-1)
+        dist = _distances(p, landmarks, min_range)
         order = np.argsort(dist, axis=1)[:, :k]
         near = np.take_along_axis(dist, order, axis=1) <= sensor_range
         rows = np.nonzero(near)
@@ -77,6 +83,7 @@ def landmark_world(
     laps: float = 2.0,
     radius: float = 10.0,
     sensor_range: float = 6.0,
+    min_range: float = 0.0,
     max_observations: int = 10,
     translation_noise: float = DEFAULT_TRANSLATION_NOISE,
     rotation_noise: float = DEFAULT_ROTATION_NOISE,
@@ -97,7 +104,11 @@ def landmark_world(
         Of the circle (2-D) or helix (3-D); landmarks are uniform in the annulus
         ``[radius/2, 3 radius/2]`` (3-D: times the helix's height range, widened by ``radius/4``).
     sensor_range : float > 0
-        Landmarks no pose would see are moved within range of a random pose, so each is seen.
+        Landmarks no pose would see are moved within range of a random pose, and one that is
+        among no pose's nearest ``max_observations`` is seen by its nearest pose: each is seen.
+    min_range : float ≥ 0
+        Landmarks nearer than this are not seen (a sensor's minimum range: a bearing to a point
+        on the sensor has no meaning); below ``sensor_range / 2``.
     max_observations : int ≥ 1
         Per pose, at most this many (the nearest) landmarks are seen.
     translation_noise, rotation_noise, point_noise : float ≥ 0
@@ -122,6 +133,9 @@ def landmark_world(
         raise ValueError(f"d must be 2 or 3, got {d!r}")
     laps, radius, reach = _positive("laps", laps), _positive("radius", radius), _positive("sensor_range", sensor_range)
     k = _size("max_observations", max_observations, 1)
+    closest = _nonnegative("min_range", min_range)
+    if closest >= 0.5 * reach:
+        raise ValueError(f"min_range must be below half the sensor_range, got {min_range} and {sensor_range}")
     sigma_t = _nonnegative("translation_noise", translation_noise)
     sigma_r = _nonnegative("rotation_noise", rotation_noise)
     sigma_p, rate = _nonnegative("point_noise", point_noise), _probability("outlier_rate", outlier_rate)
@@ -146,12 +160,17 @@ def landmark_world(
     information = np.broadcast_to(np.diag(_weights(sigma)), (n - 1, dim, dim)).copy()
 
     # A landmark no pose sees would be undetermined: move it within range of a random pose.
-    lonely = np.setdiff1d(np.arange(count), _nearest(positions, points, reach, k)[:, 1])
+    lonely = np.setdiff1d(np.arange(count), _nearest(positions, points, reach, k, closest)[:, 1])
     if lonely.size:
         offset_dir = rng.standard_normal((lonely.size, d))
         offset_dir *= (0.5 * reach / np.linalg.norm(offset_dir, axis=1))[:, None]
         points[lonely] = positions[rng.integers(0, n, lonely.size)] + offset_dir
-    seen = _nearest(positions, points, reach, k)
+    seen = _nearest(positions, points, reach, k, closest)
+    lonely = np.setdiff1d(np.arange(count), seen[:, 1])  # within range but never among a pose's nearest k
+    if lonely.size:
+        nearest = np.argmin(_distances(positions, points[lonely], closest), axis=0)
+        seen = np.concatenate([seen, np.stack([nearest, lonely], axis=1)])
+        seen = seen[np.lexsort((seen[:, 1], seen[:, 0]))]
     if not len(seen):
         raise ValueError(f"no landmark within sensor_range={reach} of any pose: widen it")
     measured = truth[seen[:, 0]].inverse().act(points[seen[:, 1]]) + sigma_p * rng.standard_normal((len(seen), d))
