@@ -17,6 +17,7 @@ import numpy as np
 from ._checks import FloatArray
 
 BLOCK = 8192
+_DIRECT = 2 * BLOCK  # arguments of at most this many entries go to the kernel directly
 
 
 def blockwise(kernel: Callable[..., FloatArray], args: tuple[FloatArray, ...], trailing: tuple[int, ...]) -> FloatArray:
@@ -25,6 +26,11 @@ def blockwise(kernel: Callable[..., FloatArray], args: tuple[FloatArray, ...], t
     ``trailing[i]`` is the number of non-batch (trailing) axes of ``args[i]``. The
     kernel must act independently on each batch element.
     """
+    for a in args:
+        if a.size > _DIRECT:
+            break
+    else:  # small inputs (single elements above all): no shapes to broadcast, no blocks
+        return kernel(*args)
     batch = np.broadcast_shapes(*(a.shape[: a.ndim - k] for a, k in zip(args, trailing, strict=True)))
     rows = max(1, BLOCK // max(1, prod(batch[1:])))
     if not batch or batch[0] <= 2 * rows:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import NotInGroupError
+from . import _one
 from ._checks import FloatArray
 
 # Largest |RᵀR − I| entry, and |last row − [0 … 0 1]| entry, accepted by ``from_matrix``.
@@ -21,6 +22,7 @@ def matvec(m: FloatArray, v: FloatArray) -> FloatArray:
     return np.einsum("...ij,...j->...i", m, v)
 
 
+@_one.fast(_one.rotate_vectors, 2, 1)
 def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
     """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``)."""
     d = r.shape[-1]
@@ -34,7 +36,7 @@ def compose_rotations(a: FloatArray, b: FloatArray) -> FloatArray:
 def assemble(r: FloatArray, t: FloatArray) -> FloatArray:
     """``[[R, t], [0, 1]]`` broadcast over the batch axes of ``R`` and ``t``."""
     d = r.shape[-1]
-    batch = np.broadcast_shapes(r.shape[:-2], t.shape[:-1])
+    batch = r.shape[:-2] if r.shape[:-2] == t.shape[:-1] else np.broadcast_shapes(r.shape[:-2], t.shape[:-1])
     out = np.zeros(batch + (d + 1, d + 1))
     out[..., :d, :d] = r
     out[..., :d, d] = t
@@ -48,6 +50,7 @@ def split(m: FloatArray) -> tuple[FloatArray, FloatArray]:
     return m[..., :d, :d], m[..., :d, d]
 
 
+@_one.fast(_one.h_compose, 2, 2, floats=False)
 def h_compose(a: FloatArray, b: FloatArray) -> FloatArray:
     """``[[Ra Rb, Ra tb + ta], [0, 1]]``."""
     ra, ta = split(a)
@@ -55,6 +58,7 @@ def h_compose(a: FloatArray, b: FloatArray) -> FloatArray:
     return assemble(ra @ rb, rotate_vectors(ra, tb) + ta)
 
 
+@_one.fast(_one.h_inverse, 2)
 def h_inverse(m: FloatArray) -> FloatArray:
     """``[[Rᵀ, −Rᵀt], [0, 1]]``."""
     r, t = split(m)
@@ -62,6 +66,7 @@ def h_inverse(m: FloatArray) -> FloatArray:
     return assemble(rt, -rotate_vectors(rt, t))
 
 
+@_one.fast(_one.h_act, 2, 1)
 def h_act(m: FloatArray, p: FloatArray) -> FloatArray:
     """``R p + t``."""
     r, t = split(m)
@@ -135,6 +140,7 @@ def skew2(v: FloatArray) -> FloatArray:
     return np.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
+@_one.fast(_one.rotation2, 0)
 def rotation2(theta: FloatArray) -> FloatArray:
     """``[[cos θ, −sin θ], [sin θ, cos θ]]``."""
     c, s = np.cos(theta), np.sin(theta)
@@ -144,6 +150,7 @@ def rotation2(theta: FloatArray) -> FloatArray:
     return out
 
 
+@_one.fast(_one.angle2, 2)
 def angle2(r: FloatArray) -> FloatArray:
     """Angle ``∈ (−π, π]`` of a planar rotation."""
     return np.arctan2(r[..., 1, 0], r[..., 0, 0])

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _matrix, _series
+from . import _matrix, _one, _series
 from ._checks import FloatArray
 
 
@@ -43,6 +43,7 @@ def _v_inverse_coefficients(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
 _quiet = np.errstate(over="ignore")
 
 
+@_one.fast(_one.se2_exp, 1)
 @_quiet
 def exp(tau: FloatArray) -> FloatArray:
     """``[[R(θ), V(θ) ρ], [0, 1]]``."""
@@ -52,6 +53,7 @@ def exp(tau: FloatArray) -> FloatArray:
     return _matrix.assemble(_matrix.rotation2(theta), a[..., None] * rho + b[..., None] * _matrix.skew2(rho))
 
 
+@_one.fast(_one.se2_log, 2)
 def log(m: FloatArray) -> FloatArray:
     """``(V(θ)⁻¹ t, θ)`` with ``θ = atan2(R₁₀, R₀₀) ∈ (−π, π]``."""
     theta = _matrix.angle2(m[..., :2, :2])
@@ -68,6 +70,7 @@ def adjoint(m: FloatArray) -> FloatArray:
     return out
 
 
+@_one.fast(_one.se2_jr, 1)
 @_quiet
 def jr(tau: FloatArray) -> FloatArray:
     """Right Jacobian::
@@ -88,6 +91,7 @@ def jr(tau: FloatArray) -> FloatArray:
     return out
 
 
+@_one.fast(_one.se2_jr_inv, 1)
 @_quiet
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[M⁻¹, −M⁻¹ w], [0, 1]]`` of ``Jr = [[M, w], [0, 1]]``, with
@@ -97,7 +101,9 @@ def jr_inv(tau: FloatArray) -> FloatArray:
     out = np.zeros_like(j)
     out[..., 0, 0], out[..., 0, 1] = a, -b
     out[..., 1, 0], out[..., 1, 1] = b, a
-    out[..., :2, 2] = -_matrix.matvec(out[..., :2, :2], j[..., :2, 2])
+    w0, w1 = j[..., 0, 2], j[..., 1, 2]
+    out[..., 0, 2] = -(a * w0 + -b * w1)
+    out[..., 1, 2] = -(b * w0 + a * w1)
     out[..., 2, 2] = 1.0
     return out
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _matrix, _series, _so3
+from . import _formulas, _matrix, _one, _series, _so3
 from ._checks import FloatArray
 
 
@@ -24,12 +24,14 @@ def vee(m: FloatArray) -> FloatArray:
     return np.concatenate([m[..., :3, 3], _so3.vee(m[..., :3, :3])], axis=-1)
 
 
+@_one.fast(_one.se3_exp, 1)
 def exp(tau: FloatArray) -> FloatArray:
     """``[[Exp(θ), Jl(θ) ρ], [0, 1]]``."""
     rho, theta = tau[..., :3], tau[..., 3:]
     return _matrix.assemble(_so3.exp(theta), _so3.jl_apply(theta, rho))
 
 
+@_one.fast(_one.se3_log, 2)
 def log(m: FloatArray) -> FloatArray:
     """``(Jl(θ)⁻¹ t, θ)`` with ``θ = Log(R)``."""
     r, t = _matrix.split(m)
@@ -37,27 +39,14 @@ def log(m: FloatArray) -> FloatArray:
     return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
 
 
-def _outer(a: FloatArray, b: FloatArray) -> FloatArray:
-    return a[..., :, None] * b[..., None, :]
-
-
-def _scalar(x: FloatArray) -> FloatArray:
-    return x[..., None, None]
-
-
 def _q_sum(rho: FloatArray, v: FloatArray, k: tuple[FloatArray, ...]) -> FloatArray:
-    """``k₀ρ^ + k₁v^ + k₂(vρᵀ + ρvᵀ) + k₃(v wᵀ − w vᵀ) − k₄ vvᵀ + k₅ I`` with ``w = v × ρ``."""
-    k0, k1, k2, k3, k4, k5 = k
-    w = np.cross(v, rho)
-    tr = _outer(v, rho)
-    return (
-        _scalar(k0) * _so3.hat(rho)
-        + _scalar(k1) * _so3.hat(v)
-        + _scalar(k2) * (tr + np.swapaxes(tr, -1, -2))
-        + _scalar(k3) * (_outer(v, w) - _outer(w, v))
-        - _scalar(k4) * _outer(v, v)
-        + _scalar(k5) * np.eye(3)
-    )
+    """``k₀ρ^ + k₁v^ + k₂(vρᵀ + ρvᵀ) + k₃(v wᵀ − w vᵀ) − k₄ vvᵀ + k₅ I`` with ``w = v × ρ``
+    (:func:`_formulas.q_entries`, entry by entry)."""
+    r = (rho[..., 0], rho[..., 1], rho[..., 2])
+    entries = _formulas.q_entries(r, (v[..., 0], v[..., 1], v[..., 2]), k)
+    if rho.shape != v.shape:
+        entries = np.broadcast_arrays(*entries)
+    return np.stack(entries, axis=-1).reshape(entries[0].shape + (3, 3))
 
 
 def _q_matrix_huge(rho: FloatArray, theta: FloatArray) -> FloatArray:
@@ -69,10 +58,15 @@ def _q_matrix_huge(rho: FloatArray, theta: FloatArray) -> FloatArray:
     c1h = c1 / (2.0 * h)
     c2 = 0.5 - 0.5 * (s / h) ** 2
     c3 = 0.25 * (2.0 + c * c - s * s) / h - 0.75 * (s / h) * (c / h)
-    du = np.einsum("...i,...i->...", u, rho)
+    du = _dot(u, rho)
     return _q_sum(rho, u, (0.5 - 2.0 * c2, (3.0 * c2 - c1) * du, c1h, c2, 2.0 * c3 * du, 2.0 * (c3 - c1h) * du))
 
 
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return _formulas.dot3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2])
+
+
+@_one.fast(_one.q_matrix, 1, 1)
 @_so3.scale_safe(_q_matrix_huge, angle=1)
 def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     """Barfoot's ``Q(ρ, θ)``, the top-right block of ``Jl(ρ, θ)`` (Solà eq. 180)::
@@ -91,28 +85,31 @@ def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     Angles beyond ``_so3.HUGE`` use the same sum with ``θ`` replaced by its axis and the
     coefficients scaled accordingly (:func:`_q_matrix_huge`).
     """
-    s = np.einsum("...i,...i->...", theta, theta)
-    d = np.einsum("...i,...i->...", theta, rho)
+    s = _so3.sq(theta)
+    d = _dot(theta, rho)
     angle = np.sqrt(s)
-    c1, c2, c3 = _series.sinc3(angle), _series.q_coef2(angle), _series.q_coef3(angle)
-    return _q_sum(rho, theta, (0.5 - 2.0 * c2 * s, (3.0 * c2 - c1) * d, c1, c2, 2.0 * c3 * d, 2.0 * d * (c3 * s - c1)))
+    c1, c2, c3 = _series.sinc3(angle, s), _series.q_coef2(angle, s), _series.q_coef3(angle, s)
+    return _q_sum(rho, theta, _formulas.q_coefficients(c1, c2, c3, s, d))
 
 
 def _block_upper(diagonal: FloatArray, corner: FloatArray) -> FloatArray:
     """``[[D, C], [0, D]]`` from 3×3 blocks."""
-    out = np.zeros(np.broadcast_shapes(diagonal.shape, corner.shape)[:-2] + (6, 6))
+    shape = diagonal.shape if diagonal.shape == corner.shape else np.broadcast_shapes(diagonal.shape, corner.shape)
+    out = np.zeros(shape[:-2] + (6, 6))
     out[..., :3, :3] = diagonal
     out[..., 3:, 3:] = diagonal
     out[..., :3, 3:] = corner
     return out
 
 
+@_one.fast(_one.se3_jr, 1)
 def jr(tau: FloatArray) -> FloatArray:
     """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179)."""
     rho, theta = tau[..., :3], tau[..., 3:]
     return _block_upper(_so3.jr(theta), q_matrix(-rho, -theta))
 
 
+@_one.fast(_one.se3_jr_inv, 1)
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``."""
     rho, theta = tau[..., :3], tau[..., 3:]

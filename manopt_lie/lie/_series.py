@@ -22,10 +22,17 @@ so the angle may carry a sign.
 Each threshold balances the closed form's cancellation against the series'
 truncation: against exact references the largest relative error is below
 1e-13 for every function and angle in ``[0, 2π)``.
+
+Two more evaluators serve speed, with the values of :func:`evaluate` bit for bit: :func:`patched`
+(NumPy arrays: the closed form everywhere, the series only on the subset of small angles, if any)
+and :func:`value` (one angle as a Python float, for the single-element path of ``_one``, on the
+backend :data:`FLOAT` of NumPy's own ufuncs). Closed forms use products, never ``x**k``: NumPy's
+vectorized ``pow`` and the C library's round differently, products round alike everywhere.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from math import factorial
@@ -39,11 +46,16 @@ __all__ = [
     "Backend",
     "Coefficient",
     "NUMPY",
+    "FLOAT",
+    "HUGE",
     "COEFFICIENTS",
     "horner",
     "evaluate",
+    "patched",
+    "value",
     "bind",
     "atan2_ratio",
+    "atan2_ratio_float",
     "sinc",
     "cosc",
     "sinc3",
@@ -75,6 +87,37 @@ class Backend(NamedTuple):
 
 
 NUMPY = Backend(np.sin, np.cos, np.sqrt, np.arctan, np.arctan2, np.fmax, np.where, np.sinh, np.cosh, np.exp)
+
+
+def _as_float(ufunc: np.ufunc) -> Callable[..., float]:
+    """``ufunc`` on Python floats, returning a Python float: NumPy's loop, hence its rounding."""
+    return lambda *x: float(ufunc(*x))
+
+
+# One angle as Python floats: NumPy's ufuncs (the same loops, so the same roundings, as on arrays),
+# ``math.sqrt`` (correctly rounded, as ``np.sqrt``) and a plain conditional for ``where``.
+FLOAT = Backend(
+    _as_float(np.sin),
+    _as_float(np.cos),
+    math.sqrt,
+    _as_float(np.arctan),
+    _as_float(np.arctan2),
+    _as_float(np.fmax),
+    lambda c, a, b: a if c else b,
+    _as_float(np.sinh),
+    _as_float(np.cosh),
+    _as_float(np.exp),
+)
+
+# Angles beyond HUGE are routed to scale-safe forms (``_so3.scale_safe``): otherwise the closed
+# forms' powers θ³…θ⁵, the discarded series' powers of θ² and ``|θ|²`` itself overflow (from
+# θ ≈ 1e25 on) and turn into nan. Such angles have no physical meaning (the ulp of 1e20 is 16384 rad).
+HUGE = 1e20
+HUGE2 = HUGE * HUGE
+
+
+def _square(x: Any) -> Any:
+    return x * x
 
 
 @dataclass(frozen=True)
@@ -140,6 +183,23 @@ def evaluate(coef: Coefficient, t: Any, theta: Any = None, backend: Backend = NU
     return backend.where(small, horner(t, coef.series), coef.closed(backend, safe))
 
 
+def patched(coef: Coefficient, t: FloatArray, theta: FloatArray) -> FloatArray:
+    """:func:`evaluate` on NumPy arrays, faster: the closed form on every angle, the series only on the
+    angles with ``t < threshold²`` (those see ``θ = 1`` in the closed form), and only if there are any."""
+    small = t < coef.threshold2
+    if not small.any():
+        return coef.closed(NUMPY, theta)
+    out = np.asarray(coef.closed(NUMPY, np.where(small, 1.0, theta)))
+    out[small] = horner(t[small], coef.series)
+    return out
+
+
+def value(coef: Coefficient, t: float, theta: float) -> float:
+    """:func:`evaluate` at one angle, on Python floats: the series if ``t < threshold²``, else the closed
+    form at ``θ`` (on :data:`FLOAT`)."""
+    return horner(t, coef.series) if t < coef.threshold2 else coef.closed(FLOAT, theta)
+
+
 def bind(coef: Coefficient, backend: Backend) -> Callable[..., Any]:
     """``f(t, theta=None)``: ``coef`` as a function of ``t = θ²`` on ``backend``, named and documented."""
 
@@ -172,35 +232,35 @@ COSC = Coefficient(
     "(1 − cos θ) / θ², as 2 sin²(θ/2) / θ² (no cancellation)",
     0.3,
     _taylor(lambda j: (-1) ** j / factorial(2 * j + 2)),
-    lambda b, x: 2.0 * (b.sin(0.5 * x) / x) ** 2,
+    lambda b, x: 2.0 * _square(b.sin(0.5 * x) / x),
 )
 SINC3 = Coefficient(
     "sinc3",
     "(θ − sin θ) / θ³",
     0.5,
     _taylor(lambda j: (-1) ** j / factorial(2 * j + 3)),
-    lambda b, x: (x - b.sin(x)) / x**3,
+    lambda b, x: (x - b.sin(x)) / (x * x * x),
 )
 JINV_COEF = Coefficient(
     "jinv_coef",
     "1/θ² − (1 + cos θ)/(2θ sin θ) = 1/θ² − cot(θ/2)/(2θ), the [θ]×² coefficient of Jr(θ)⁻¹; finite on [0, 2π)",
     0.3,
     _COT_SERIES,
-    lambda b, x: 1.0 / x**2 - b.cos(0.5 * x) / (2.0 * x * b.sin(0.5 * x)),
+    lambda b, x: 1.0 / (x * x) - b.cos(0.5 * x) / (2.0 * x * b.sin(0.5 * x)),
 )
 Q_COEF2 = Coefficient(
     "q_coef2",
     "(θ² + 2 cos θ − 2) / (2θ⁴), c₂ of Barfoot's Q(ρ, θ)",
     0.7,
     _taylor(lambda j: (-1) ** j / factorial(2 * j + 4)),
-    lambda b, x: (x * x + 2.0 * b.cos(x) - 2.0) / (2.0 * x**4),
+    lambda b, x: (x * x + 2.0 * b.cos(x) - 2.0) / (2.0 * _square(x * x)),
 )
 Q_COEF3 = Coefficient(
     "q_coef3",
     "(2θ − 3 sin θ + θ cos θ) / (2θ⁵), c₃ of Barfoot's Q(ρ, θ)",
     0.7,
     _taylor(lambda j: (-1) ** j * (j + 1) / factorial(2 * j + 5)),
-    lambda b, x: (2.0 * x - 3.0 * b.sin(x) + x * b.cos(x)) / (2.0 * x**5),
+    lambda b, x: (2.0 * x - 3.0 * b.sin(x) + x * b.cos(x)) / (2.0 * _square(x * x) * x),
 )
 HALF_COT = Coefficient(
     "half_cot",
@@ -245,14 +305,14 @@ EMOMENT1 = Coefficient(
     "(y cosh y − sinh y) / (2y³) = (1/y) ∫ x e^{2xy} dx over [−½, ½]",
     0.5,
     _taylor(lambda j: (j + 1) / factorial(2 * j + 3), 8),
-    lambda b, x: (x * b.cosh(x) - b.sinh(x)) / (2.0 * x**3),
+    lambda b, x: (x * b.cosh(x) - b.sinh(x)) / (2.0 * (x * x * x)),
 )
 EMOMENT2 = Coefficient(
     "emoment2",
     "(y² sinh y − 2y cosh y + 2 sinh y) / (4y³) = ∫ x² e^{2xy} dx over [−½, ½]",
     1.0,
     _taylor(lambda j: 1.0 / (4 * (2 * j + 3) * factorial(2 * j)), 10),
-    lambda b, x: ((x * x + 2.0) * b.sinh(x) - 2.0 * x * b.cosh(x)) / (4.0 * x**3),
+    lambda b, x: ((x * x + 2.0) * b.sinh(x) - 2.0 * x * b.cosh(x)) / (4.0 * (x * x * x)),
 )
 
 COEFFICIENTS: tuple[Coefficient, ...] = (
@@ -357,54 +417,63 @@ def atan2_ratio(s2: Any, c: Any, backend: Backend = NUMPY) -> Any:
     return backend.where(small, series, backend.atan2(s, c) / s)
 
 
+def atan2_ratio_float(s2: float, c: float) -> float:
+    """:func:`atan2_ratio` on Python floats (one branch evaluated, the same roundings)."""
+    if s2 < ATAN_RATIO.threshold2 * c * abs(c):
+        return horner(s2 / (c * c), ATAN_RATIO.series) / c
+    s = math.sqrt(s2 if s2 >= 1e-300 else 1e-300)
+    return FLOAT.atan2(s, c) / s
+
+
 # ---- the NumPy functions of the angle θ (either sign) that the kernels call ----------------
+# ``t`` is the squared angle where the caller has it (``|w|²`` summed by components), else ``θ²``.
 
 
-def sinc(theta: FloatArray) -> FloatArray:
+def sinc(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``sin θ / θ``."""
-    return evaluate(SINC, theta * theta, theta)
+    return patched(SINC, theta * theta if t is None else t, theta)
 
 
-def cosc(theta: FloatArray) -> FloatArray:
+def cosc(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``(1 − cos θ) / θ²``, written ``2 sin²(θ/2) / θ²`` to avoid cancellation."""
-    return evaluate(COSC, theta * theta, theta)
+    return patched(COSC, theta * theta if t is None else t, theta)
 
 
-def sinc3(theta: FloatArray) -> FloatArray:
+def sinc3(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``(θ − sin θ) / θ³``."""
-    return evaluate(SINC3, theta * theta, theta)
+    return patched(SINC3, theta * theta if t is None else t, theta)
 
 
-def jinv_coef(theta: FloatArray) -> FloatArray:
+def jinv_coef(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``1/θ² − (1 + cos θ)/(2θ sin θ) = 1/θ² − cot(θ/2)/(2θ)``.
 
     The coefficient of ``[θ]×²`` in ``Jr(θ)⁻¹``; finite up to (excluding) ``2π``
     and exact at ``π``, being written with ``cot(θ/2)``.
     """
-    return evaluate(JINV_COEF, theta * theta, theta)
+    return patched(JINV_COEF, theta * theta if t is None else t, theta)
 
 
-def q_coef2(theta: FloatArray) -> FloatArray:
+def q_coef2(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``(θ² + 2 cos θ − 2) / (2θ⁴)`` of Barfoot's ``Q(ρ, θ)``."""
-    return evaluate(Q_COEF2, theta * theta, theta)
+    return patched(Q_COEF2, theta * theta if t is None else t, theta)
 
 
-def q_coef3(theta: FloatArray) -> FloatArray:
+def q_coef3(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``(2θ − 3 sin θ + θ cos θ) / (2θ⁵)`` of Barfoot's ``Q(ρ, θ)``."""
-    return evaluate(Q_COEF3, theta * theta, theta)
+    return patched(Q_COEF3, theta * theta if t is None else t, theta)
 
 
-def half_cot(theta: FloatArray) -> FloatArray:
+def half_cot(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``(θ/2) cot(θ/2) = 1 − θ² jinv_coef(θ)``, the diagonal of SE(2)'s ``V(θ)⁻¹``.
 
     Accurate relative to its value everywhere on ``(−2π, 2π)``, including its zero at ``±π``.
     """
-    return evaluate(HALF_COT, theta * theta, theta)
+    return patched(HALF_COT, theta * theta if t is None else t, theta)
 
 
-def sinc_half(theta: FloatArray) -> FloatArray:
+def sinc_half(theta: FloatArray, t: FloatArray | None = None) -> FloatArray:
     """``sin(θ/2) / θ``."""
-    return evaluate(SINC_HALF, theta * theta, theta)
+    return patched(SINC_HALF, theta * theta if t is None else t, theta)
 
 
 def atan_ratio(x: FloatArray) -> FloatArray:

@@ -12,15 +12,24 @@ from typing import Any
 
 import numpy as np
 
-from . import _series
+from . import _formulas, _one, _series
 from ._checks import FloatArray
 
-# Angles beyond HUGE are routed to the scale-safe forms below: otherwise the closed forms'
-# powers θ³…θ⁵, the discarded series' powers of θ² and ``|θ|²`` itself overflow (from θ ≈ 1e25
-# on) and turn into nan. Such angles have no physical meaning (the ulp of 1e20 is 16384 rad).
-HUGE = 1e20
+# Angles beyond HUGE are routed to the scale-safe forms below (see ``_series.HUGE``).
+HUGE = _series.HUGE
 
 
+def sq(w: FloatArray) -> FloatArray:
+    """``|w|²`` summed by components (as the single-element twins do; ``einsum`` is slow on 3-vectors)."""
+    return _formulas.sq3(w[..., 0], w[..., 1], w[..., 2])
+
+
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a × b`` by components (``np.cross`` costs ~50 µs on small arrays), broadcasting batch axes."""
+    return np.stack(_formulas.cross3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]), axis=-1)
+
+
+@_one.fast(_one.hat3, 1)
 def hat(w: FloatArray) -> FloatArray:
     """``[w]×``."""
     x, y, z = w[..., 0], w[..., 1], w[..., 2]
@@ -40,7 +49,7 @@ def vee(m: FloatArray) -> FloatArray:
 
 
 def _norm(w: FloatArray) -> FloatArray:
-    return np.sqrt(np.einsum("...i,...i->...", w, w))
+    return np.sqrt(sq(w))
 
 
 # ---- huge angles: every kernel below stays finite for any finite tangent -------------------
@@ -73,8 +82,8 @@ def scale_safe(huge: Callable[..., FloatArray], angle: int = 0) -> Callable[[Any
     def decorate(kernel: Callable[..., FloatArray]) -> Callable[..., FloatArray]:
         @wraps(kernel)
         def f(*args: FloatArray) -> FloatArray:
-            w = args[angle]
-            big = ~(np.einsum("...i,...i->...", w, w) < HUGE * HUGE)  # inf (overflow) included
+            with np.errstate(over="ignore"):
+                big = ~(sq(args[angle]) < _series.HUGE2)  # inf (overflow) included
             if not big.any():
                 return kernel(*args)
             batch = np.broadcast_shapes(*(a.shape[:-1] for a in args))
@@ -114,42 +123,72 @@ def _jl_inv_apply_huge(w: FloatArray, v: FloatArray) -> FloatArray:
 def _jr_huge(w: FloatArray) -> FloatArray:
     """``I − (1 − cos θ)/θ [u]× + (1 − sin θ/θ) [u]×²``."""
     u, h, s, c = polar(w)
-    return _i_plus(-s * s / h, 1.0 - s * c / h, u)
+    return i_plus(-s * s / h, 1.0 - s * c / h, u, sq(u))
 
 
 def _jr_inv_huge(w: FloatArray) -> FloatArray:
     """``I + (θ/2)[u]× + (1 − (θ/2)cot(θ/2)) [u]×²``."""
     u, h, s, c = polar(w)
-    return _i_plus(h, 1.0 - h * c / s, u)
+    return i_plus(h, 1.0 - h * c / s, u, sq(u))
 
 
-@scale_safe(_exp_huge)
-def exp(w: FloatArray) -> FloatArray:
-    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×``.
-
-    All coefficients come from one ``sin``/``cos`` pair of ``θ/2``:
-    ``sin θ/θ = 2 r cos(θ/2)``, ``(1 − cos θ)/θ² = 2 r²`` with ``r = sin(θ/2)/θ``
-    (:data:`_series.SINC_HALF`), which has no cancellation, so its series
-    ``½ − θ²/48 + θ⁴/3840`` is needed only below ``θ = 1e-4``. Angles beyond
-    :data:`HUGE` go through the quaternion of :func:`polar` (see :func:`scale_safe`).
-    """
-    flat = w.reshape(-1, 3)  # 1-D components, so the in-place updates below have arrays to update
-    x, y, z = flat[:, 0], flat[:, 1], flat[:, 2]
-    t = x * x
-    t += y * y
-    t += z * z
-    theta = np.sqrt(t)
-    r = _series.evaluate(_series.SINC_HALF, t, theta)
-    a = np.cos(0.5 * theta)
-    a *= 2.0 * r
-    b = 2.0 * r * r
-    c = 1.0 - b * t
+def rodrigues(r: FloatArray, c: FloatArray, w: FloatArray, t: FloatArray, out: FloatArray) -> None:
+    """``Exp(w)`` into ``out`` ``(n, 9)`` from ``r = sin(θ/2)/θ``, ``c = cos(θ/2)`` (overwritten), ``w`` ``(n, 3)``,
+    ``t = θ²``: ``cos θ I + (1 − cos θ)/θ² w wᵀ + sin θ/θ [w]×`` with ``sin θ/θ = 2rc``,
+    ``(1 − cos θ)/θ² = 2r²``. Products and sums are written straight into the columns of ``out``."""
+    x, y, z = w[:, 0], w[:, 1], w[:, 2]
+    r2 = r + r
+    a = np.multiply(r2, c, out=c)
+    b = np.multiply(r2, r, out=r2)
+    cd = b * t
+    np.subtract(1.0, cd, out=cd)
     bx, by, bz = b * x, b * y, b * z
     ax, ay, az = a * x, a * y, a * z
     bxy, bxz, byz = bx * y, bx * z, by * z
-    return np.stack(
-        [c + bx * x, bxy - az, bxz + ay, bxy + az, c + by * y, byz - ax, bxz - ay, byz + ax, c + bz * z], axis=-1
-    ).reshape(w.shape[:-1] + (3, 3))
+    for k, (p, q) in enumerate(((bx, x), (by, y), (bz, z))):
+        np.multiply(p, q, out=out[:, 4 * k])
+        out[:, 4 * k] += cd
+    np.subtract(bxy, az, out=out[:, 1])
+    np.add(bxz, ay, out=out[:, 2])
+    np.add(bxy, az, out=out[:, 3])
+    np.subtract(byz, ax, out=out[:, 5])
+    np.subtract(bxz, ay, out=out[:, 6])
+    np.add(byz, ax, out=out[:, 7])
+
+
+@_one.fast(_one.so3_exp, 1)
+@scale_safe(_exp_huge)
+def exp(w: FloatArray) -> FloatArray:
+    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (see :func:`rodrigues`).
+
+    Both coefficients come from one ``tan`` of ``θ/4`` (vectorized in NumPy, unlike ``sin``/``cos``),
+    without cancellation: with ``τ = tan(θ/4)`` and ``k = 2/(1 + τ²) = 1 + cos(θ/2)``,
+    ``r = sin(θ/2)/θ = (τ/θ)·k`` and ``cos(θ/2) = k − 1``. Below ``θ = 1e-4`` the series
+    :data:`_series.SINC_HALF` and :data:`_series.COS_HALF` replace them (only on those rows, if
+    any). Angles beyond :data:`HUGE` go through the quaternion of :func:`polar` (:func:`scale_safe`).
+    """
+    flat = w.reshape(-1, 3)
+    t = sq(flat)
+    theta = np.sqrt(t)
+    small = t < _series.SINC_HALF.threshold2
+    few = small.any()
+    if few:
+        theta[small] = 1.0  # placeholders: the series below replace these rows
+    tau = np.multiply(theta, 0.25)
+    np.tan(tau, out=tau)
+    r = np.divide(tau, theta, out=theta)
+    k = np.multiply(tau, tau, out=tau)
+    k += 1.0
+    np.divide(2.0, k, out=k)
+    r *= k
+    c = np.subtract(k, 1.0, out=k)
+    if few:
+        ts = t[small]
+        r[small] = _series.horner(ts, _series.SINC_HALF.series)
+        c[small] = _series.horner(ts, _series.COS_HALF.series)
+    out = np.empty((flat.shape[0], 9))
+    rodrigues(r, c, flat, t, out)
+    return out.reshape(w.shape[:-1] + (3, 3))
 
 
 def to_quaternion(r: FloatArray) -> FloatArray:
@@ -177,7 +216,10 @@ def to_quaternion(r: FloatArray) -> FloatArray:
         ],
         axis=-1,
     )
-    q /= _norm(q)[..., None]
+    n = q[..., 0] * q[..., 0]
+    for i in (1, 2, 3):
+        n += q[..., i] * q[..., i]
+    q /= np.sqrt(n)[..., None]
     q *= np.where(q[..., 3:] < 0.0, -1.0, 1.0)
     return q
 
@@ -206,11 +248,12 @@ def quaternion_log(q: FloatArray) -> FloatArray:
     The ratio is :func:`_series.atan2_ratio`, a series in ``|v|²/w²`` near the identity.
     """
     v, w = q[..., :3], q[..., 3]
-    ratio = _series.atan2_ratio(np.einsum("...i,...i->...", v, v), w)
+    ratio = _series.atan2_ratio(sq(v), w)
     ratio *= 2.0
     return ratio[..., None] * v
 
 
+@_one.fast(_one.so3_log, 2)
 def log(r: FloatArray) -> FloatArray:
     """``Log(R) = θu`` with ``θ ∈ [0, π]``, through the quaternion."""
     return quaternion_log(to_quaternion(r))
@@ -218,45 +261,50 @@ def log(r: FloatArray) -> FloatArray:
 
 def _cross_terms(w: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``(w × v, w × (w × v))``, i.e. ``[w]× v`` and ``[w]×² v``."""
-    wv = np.cross(w, v)
-    return wv, np.cross(w, wv)
+    wv = cross(w, v)
+    return wv, cross(w, wv)
 
 
+@_one.fast(_one.jl_apply, 1, 1)
 @scale_safe(_jl_apply_huge)
 def jl_apply(w: FloatArray, v: FloatArray) -> FloatArray:
     """``Jl(w) v = v + (1 − cos θ)/θ² w×v + (θ − sin θ)/θ³ w×(w×v)`` (eq. 145)."""
-    theta = _norm(w)
+    t = sq(w)
+    theta = np.sqrt(t)
     wv, wwv = _cross_terms(w, v)
-    return v + _series.cosc(theta)[..., None] * wv + _series.sinc3(theta)[..., None] * wwv
+    return v + _series.cosc(theta, t)[..., None] * wv + _series.sinc3(theta, t)[..., None] * wwv
 
 
+@_one.fast(_one.jl_inv_apply, 1, 1)
 @scale_safe(_jl_inv_apply_huge)
 def jl_inv_apply(w: FloatArray, v: FloatArray) -> FloatArray:
     """``Jl(w)⁻¹ v = v − ½ w×v + (1/θ² − (1+cos θ)/(2θ sin θ)) w×(w×v)`` (eq. 146)."""
-    theta = _norm(w)
+    t = sq(w)
     wv, wwv = _cross_terms(w, v)
-    return v - 0.5 * wv + _series.jinv_coef(theta)[..., None] * wwv
+    return v - 0.5 * wv + _series.jinv_coef(np.sqrt(t), t)[..., None] * wwv
 
 
-def _i_plus(a: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
-    """``I + a [w]× + b [w]×²`` with ``[w]×² = w wᵀ − |w|² I``."""
-    k = hat(w)
-    k2 = w[..., :, None] * w[..., None, :] - np.einsum("...i,...i->...", w, w)[..., None, None] * np.eye(3)
-    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * k2
+def i_plus(a: FloatArray | float, b: FloatArray, w: FloatArray, t: FloatArray) -> FloatArray:
+    """``I + a [w]× + b [w]×²`` with ``[w]×² = w wᵀ − t I``, ``t = |w|²``, entry by entry."""
+    entries = _formulas.i_plus(a, b, w[..., 0], w[..., 1], w[..., 2], t)
+    return np.stack(entries, axis=-1).reshape(w.shape[:-1] + (3, 3))
 
 
+@_one.fast(_one.so3_jr, 1)
 @scale_safe(_jr_huge)
 def jr(w: FloatArray) -> FloatArray:
     """``Jr(θ) = I − (1 − cos θ)/θ² [θ]× + (θ − sin θ)/θ³ [θ]×²`` (eq. 143)."""
-    theta = _norm(w)
-    return _i_plus(-_series.cosc(theta), _series.sinc3(theta), w)
+    t = sq(w)
+    theta = np.sqrt(t)
+    return i_plus(-_series.cosc(theta, t), _series.sinc3(theta, t), w, t)
 
 
+@_one.fast(_one.so3_jr_inv, 1)
 @scale_safe(_jr_inv_huge)
 def jr_inv(w: FloatArray) -> FloatArray:
     """``Jr(θ)⁻¹ = I + ½[θ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [θ]×²`` (eq. 144)."""
-    theta = _norm(w)
-    return _i_plus(np.full_like(theta, 0.5), _series.jinv_coef(theta), w)
+    t = sq(w)
+    return i_plus(0.5, _series.jinv_coef(np.sqrt(t), t), w, t)
 
 
 def act_jac_rotation(r: FloatArray, p: FloatArray) -> FloatArray:
