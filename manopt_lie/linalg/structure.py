@@ -20,7 +20,8 @@ refills data arrays.
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
@@ -319,7 +320,11 @@ class BlockStructure:
         g = np.asarray(np.bincount(self._grad_scatter, weights=grad_vals, minlength=self._n), dtype=np.float64)
         return self._csc(data), g
 
-    def add_diagonal(self, H: sp.csc_matrix, values: ArrayLike) -> sp.csc_matrix:
+    def _check_pattern(self, H: sp.csc_matrix, what: str) -> None:
+        if H.shape != (self._n, self._n) or H.nnz != self.nnz or H.format != "csc":
+            raise ValueError(f"{what}: H does not have this structure's CSC pattern")
+
+    def add_diagonal(self, H: sp.csc_matrix, values: ArrayLike, *, inplace: bool = False) -> sp.csc_matrix:
         """``H + diag(values)`` with the pattern of ``H`` kept (e.g. Levenberg-Marquardt damping).
 
         Parameters
@@ -328,15 +333,40 @@ class BlockStructure:
             A matrix returned by :meth:`normal_equations` (or by this method).
         values : array_like, shape (n,) or scalar
             Added to the diagonal, e.g. ``λ·H.diagonal()`` or ``λ``.
+        inplace : bool
+            Add to ``H.data`` itself and return ``H`` (``O(n)``, no copy) instead of a
+            new matrix.
 
         Returns
         -------
         scipy.sparse.csc_matrix
-            A new matrix sharing :attr:`indptr` and :attr:`indices`, so a
-            solver's symbolic analysis of ``H`` is reused; ``H`` is unchanged.
+            A matrix sharing :attr:`indptr` and :attr:`indices`, so a solver's
+            symbolic analysis of ``H`` is reused; ``H`` is unchanged unless ``inplace``.
         """
-        if H.shape != (self._n, self._n) or H.nnz != self.nnz or H.format != "csc":
-            raise ValueError("add_diagonal: H does not have this structure's CSC pattern")
-        data = H.data.copy()
+        self._check_pattern(H, "add_diagonal")
+        data = H.data if inplace else H.data.copy()
         data[self._diag_pos] += np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
-        return self._csc(data)
+        return H if inplace else self._csc(data)
+
+    @contextmanager
+    def shifted_diagonal(self, H: sp.csc_matrix, values: ArrayLike) -> Iterator[sp.csc_matrix]:
+        """``H + diag(values)`` in place for the duration of a ``with`` block, ``H`` restored after.
+
+        The diagonal of ``H`` is saved (``n`` numbers), ``values`` added to it, and the
+        saved diagonal written back on leaving the block, exceptions included, so ``H``
+        is bitwise unchanged afterwards. Damping thus costs ``O(n)``, not a copy of
+        ``H``'s ``nnz`` values; ``H`` must not be read elsewhere (another thread) meanwhile.
+
+        Yields
+        ------
+        scipy.sparse.csc_matrix
+            ``H`` itself, damped.
+        """
+        self._check_pattern(H, "shifted_diagonal")
+        pos = self._diag_pos
+        saved = H.data[pos]  # fancy indexing: a copy
+        H.data[pos] = saved + np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
+        try:
+            yield H
+        finally:
+            H.data[pos] = saved

@@ -1,10 +1,11 @@
 """Problems and Riemannian optimizers.
 
 Every optimizer is listed once, in :data:`OPTIMIZERS` (:mod:`.registry`), by
-its short name (``"gd"``, ``"cg"``, ``"gn"``, ``"lm"``, ``"tr"``).
+its short name (``"gd"``, ``"cg"``, ``"gn"``, ``"lm"``, ``"tr"``, ``"dogleg"``).
 """
 
 from .conjugate_gradient import ConjugateGradient
+from .dogleg import Dogleg
 from .gradient_descent import GradientDescent
 from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
 from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
@@ -35,6 +36,7 @@ __all__ = [
     "LineSearchResult",
     "GaussNewton",
     "LevenbergMarquardt",
+    "Dogleg",
     "NonlinearLeastSquares",
     "OPTIMIZERS",
     "OptimizerEntry",

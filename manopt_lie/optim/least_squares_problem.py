@@ -316,7 +316,8 @@ class LeastSquaresProblem(Problem):
             weights.append(f.robust_loss.weight(s))
         structure = self._structure or self._build_structure(residuals)
         h, g = structure.normal_equations(blocks, residuals, weights)
-        h = structure.add_diagonal(h, np.repeat(self._fixed, self._layout.dims).astype(np.float64))
+        if self._fixed.any():  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
+            h = structure.add_diagonal(h, np.repeat(self._fixed, self._layout.dims).astype(np.float64), inplace=True)
         lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
         self._local.linearization = (key, lin)
         return lin

@@ -1,4 +1,5 @@
-"""Gauss-Newton and Levenberg-Marquardt: one nonlinear-least-squares loop, two step rules.
+"""Gauss-Newton and Levenberg-Marquardt: one nonlinear-least-squares loop, its step rules
+(Powell's dogleg, the third, is in :mod:`.dogleg`).
 
 Each iteration linearizes at ``x`` (gradient ``g = JᵀWr``, ``H = JᵀWJ`` with a
 fixed sparsity pattern), computes a tangent step ``δ`` from the normal
@@ -6,18 +7,20 @@ equations with a pluggable :class:`~manopt_lie.linalg.LinearSolver` — by
 default a sparse Cholesky solve whose symbolic analysis is done once per run,
 or preconditioned conjugate gradients (``linear_solver="pcg"``) — and moves to
 ``R_x(δ)``. A singular system (an unfixed gauge, a variable no factor touches)
-raises :class:`~manopt_lie.linalg.SingularSystemError` rather than taking a
-garbage step.
+makes Gauss-Newton raise :class:`~manopt_lie.linalg.SingularSystemError` rather
+than take a garbage step; Levenberg-Marquardt damps it (a failure: more damping),
+the dogleg falls back on the Cauchy step.
 
 A trial point whose cost is not finite is rejected (Gauss-Newton backtracks,
-Levenberg-Marquardt raises its damping); so is, for Levenberg-Marquardt, an
-accepted point whose linearization is not finite, where Gauss-Newton stops
-with ``Status.NON_FINITE``. When the step collapses — a step shorter than
-``min_step``, Gauss-Newton's failed line search, the damping past
-``max_damping`` — the run has converged (``Status.STEP_SIZE``) only if the
-Gauss-Newton model at the point predicts no decrease above round-off,
-``ROUNDOFF·max(s, |f|)``; otherwise it ends with ``Status.NO_PROGRESS`` (the
-failed line search keeps ``Status.LINE_SEARCH_FAILED``).
+Levenberg-Marquardt raises its damping, the dogleg shrinks its radius); so is,
+for those two, an accepted point whose linearization is not finite, where
+Gauss-Newton stops with ``Status.NON_FINITE``. When the step collapses — a step
+shorter than ``min_step``, Gauss-Newton's failed line search, a failure at
+``max_damping``, the dogleg's radius below ``min_step`` — the run has converged
+(``Status.STEP_SIZE``) only if the Gauss-Newton model at the point predicts no
+decrease above round-off, ``ROUNDOFF·max(s, |f|)``; otherwise it ends with
+``Status.NO_PROGRESS`` (the failed line search keeps
+``Status.LINE_SEARCH_FAILED``).
 """
 
 from __future__ import annotations
@@ -54,7 +57,16 @@ class _Step:
 @dataclass
 class _Damping:
     lam: float
-    nu: float = 2.0
+    nu: float
+
+
+_DAMPINGS = ("identity", "diagonal")
+
+
+def model_decrease(lin: Linearization, delta: Any) -> float:
+    """``m(0) − m(δ) = −gᵀδ − ½δᵀHδ``: the decrease the Gauss-Newton model predicts for ``δ``."""
+    flat, g = np.asarray(delta).reshape(-1), lin.grad.reshape(-1)
+    return -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
 
 
 def _no_descent(lin: Linearization) -> Status:
@@ -127,18 +139,13 @@ class NonlinearLeastSquares(Optimizer):
     def _predicted_decrease(
         self, problem: LeastSquaresProblem, solver: LinearSolver, lin: Linearization, scale: float
     ) -> float:
-        """``−gᵀδ − ½δᵀHδ`` for the step ``δ`` of :meth:`_model_matrix` at ``lin`` (``nan`` if
+        """``−gᵀδ − ½δᵀHδ`` for the Gauss-Newton step ``δ = −H⁻¹g`` at ``lin`` (``nan`` if
         the system cannot be solved): how much the Gauss-Newton model says is left to gain."""
         try:
-            delta, _ = self._newton_system_step(solver, self._model_matrix(problem, lin, scale), lin.grad)
+            delta, _ = self._newton_system_step(solver, lin.hessian, lin.grad)
         except SingularSystemError:
             return math.nan
-        flat, g = delta.reshape(-1), lin.grad.reshape(-1)
-        return -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
-
-    def _model_matrix(self, problem: LeastSquaresProblem, lin: Linearization, scale: float) -> Any:
-        """The matrix whose step judges a collapse (:meth:`_predicted_decrease`): ``H``."""
-        return lin.hessian
+        return model_decrease(lin, delta)
 
     def _reject_nonfinite(self, step: _Step, state: Any) -> _Step:
         """An accepted point whose linearization is not finite: stop there (Gauss-Newton)."""
@@ -213,16 +220,14 @@ class GaussNewton(NonlinearLeastSquares):
             sufficient_decrease=self.sufficient_decrease, max_backtracks=self.max_backtracks,
         )  # fmt: skip
         if not ls.success:
-            predicted = -slope - 0.5 * float(delta.reshape(-1) @ (lin.hessian @ delta.reshape(-1)))
+            predicted = model_decrease(lin, delta)
             extra = {"alpha": 0.0, **extra}
             return _Step(x, lin.cost, math.nan, False, extra, Status.LINE_SEARCH_FAILED, True, predicted)
         return _Step(ls.x, ls.fun, ls.step, True, {"alpha": ls.alpha, **extra})
 
 
 class LevenbergMarquardt(NonlinearLeastSquares):
-    """``(H + λD) δ = −g`` with Marquardt's scaling ``D = diag(H)`` (clipped to
-    ``[1e-6·s, 1e32·s]``, ``s`` the cost scale of
-    :class:`~manopt_lie.optim.StoppingCriteria`: Ceres's bounds for ``s = 1``), accepted when the gain ratio
+    """``(H + λD) δ = −g``, accepted when the gain ratio
     ``ρ = (f(x) − f(R_x(δ))) / (−gᵀδ − ½δᵀHδ)`` is positive.
 
     The denominator is the decrease of the Gauss-Newton model; for an exact
@@ -231,23 +236,39 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     predict to decrease the cost is not taken (nor evaluated): it ends the run
     as for :class:`GaussNewton`.
 
-    Nielsen's damping update: on success ``λ ← λ·max(⅓, 1 − (2ρ − 1)³)``,
-    ``ν ← 2`` (``λ`` at least 1e-15); on failure ``λ ← λν``, ``ν ← 2ν``; past
-    ``max_damping`` no step of any size decreases the cost and the run stops:
-    converged (``Status.STEP_SIZE``) if the model with ``λ₀`` predicts only
-    round-off, ``Status.NO_PROGRESS`` otherwise. A trial cost or a new
-    linearization that is not finite counts as a failure. Since ``D`` carries the scale
-    of ``H``, ``λ`` is dimensionless and starts at ``initial_damping``, by default
-    1e-6. Pose graphs' normal equations are ill-conditioned (condition 10⁸–10¹¹):
-    there Ceres's ``10⁻⁴`` freezes the weak directions for several iterations and
-    needed 2-3x the iterations of ``10⁻⁶`` (``benchmarks/bench_pose_graph.py``);
-    ``λ`` grows quickly when the model is poor. ``history.extra`` holds
-    ``damping`` (the ``λ`` of the step) and ``rho``.
+    The damping matrix ``D`` is ``s·I`` (``damping="identity"``, the default, as
+    GTSAM's) or Marquardt's ``diag(H)`` clipped to ``[1e-6·s, 1e32·s]``
+    (``damping="diagonal"``, Ceres's bounds for ``s = 1``), ``s`` the cost scale
+    of :class:`~manopt_lie.optim.StoppingCriteria`, so that ``λ`` is relative to
+    the size of the cost. The update is GTSAM's with Nielsen's growth on repeated
+    failures: on success ``λ ← max(λ/κ, 1e-15)``, ``ν ← κ`` (``κ = damping_factor``,
+    10); on failure ``λ ← min(λν, max_damping)``, ``ν ← 2ν``; a failure at
+    ``max_damping`` ends the run, converged (``Status.STEP_SIZE``) if the model
+    with ``λ₀`` predicts only round-off, ``Status.NO_PROGRESS`` otherwise. A trial
+    cost or a new linearization that is not finite, and a damped system the linear
+    solver finds singular (:class:`~manopt_lie.linalg.SingularSystemError`), count
+    as failures. The damping is added to the diagonal of ``H`` in place for the
+    solve and removed after it (no copy of ``H``).
+
+    Why these choices (``benchmarks/bench_pose_graph.py``): pose graphs' normal
+    equations are ill-conditioned (condition 10⁸–10¹¹) with weak, long-wavelength
+    directions whose curvature ``vᵀHv/vᵀv`` is small next to the diagonal. Any
+    ``λ·diag(H)`` above the inverse condition number freezes them, and Nielsen's
+    shrink by at most 3× per success then needed 1.7× GTSAM's iterations; ``λ·s·I``
+    from ``λ₀ = 1e-8``, divided by 10 per success, starts as Gauss-Newton from a
+    good initialization and needs at most GTSAM's iterations on every SE-Sync
+    dataset, while a poor start raises ``λ`` tenfold per failure (random
+    initializations take as many iterations as GTSAM's LM). ``history.extra``
+    holds ``damping`` (the ``λ`` of the step) and ``rho``.
 
     Parameters
     ----------
     initial_damping, max_damping : float
-        ``λ₀ > 0`` and the ``λ`` beyond which the run stops.
+        ``λ₀ > 0`` and the largest ``λ`` tried before the run stops.
+    damping : {"identity", "diagonal"}
+        ``D = s·I`` or ``D = diag(H)`` (clipped), see above.
+    damping_factor : float
+        ``κ > 1``: the division on success and the first multiplication on failure.
     linear_solver, stopping, **fields
         See :class:`NonlinearLeastSquares`.
     """
@@ -255,8 +276,10 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     def __init__(
         self,
         *,
-        initial_damping: float = 1e-6,
+        initial_damping: float = 1e-8,
         max_damping: float = 1e32,
+        damping: str = "identity",
+        damping_factor: float = 10.0,
         linear_solver: str | LinearSolver | None = None,
         stopping: StoppingCriteria | None = None,
         **fields: Any,
@@ -264,21 +287,42 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         super().__init__(linear_solver=linear_solver, stopping=stopping, **fields)
         if not initial_damping > 0:
             raise ValueError(f"LevenbergMarquardt: initial_damping must be positive, got {initial_damping}")
+        if not max_damping >= initial_damping:
+            raise ValueError(f"LevenbergMarquardt: max_damping must be ≥ initial_damping, got {max_damping}")
+        if damping not in _DAMPINGS:
+            raise ValueError(f"LevenbergMarquardt: damping must be one of {', '.join(_DAMPINGS)}, got {damping!r}")
+        if not damping_factor > 1:
+            raise ValueError(f"LevenbergMarquardt: damping_factor must be > 1, got {damping_factor}")
         self.initial_damping, self.max_damping = initial_damping, max_damping
+        self.damping, self.damping_factor = damping, damping_factor
 
     def _initial_state(self, lin: Linearization) -> _Damping:
-        return _Damping(self.initial_damping)
+        return _Damping(self.initial_damping, self.damping_factor)
+
+    def _scaling(self, lin: Linearization, scale: float) -> Any:
+        """``D``: the scalar ``s`` (``s·I``) or the clipped ``diag(H)``."""
+        if self.damping == "identity":
+            return scale
+        return np.clip(lin.hessian.diagonal(), 1e-6 * scale, 1e32 * scale)
+
+    def _damped_step(
+        self, problem: LeastSquaresProblem, solver: LinearSolver, lin: Linearization, shift: Any
+    ) -> tuple[Any, dict[str, float]]:
+        """``δ = −(H + diag(shift))⁻¹g``, the shift added to ``H``'s diagonal in place and removed after."""
+        assert problem.structure is not None
+        with problem.structure.shifted_diagonal(lin.hessian, shift):
+            return self._newton_system_step(solver, lin.hessian, lin.grad)
 
     def _step(
         self, run: Run, problem: LeastSquaresProblem, solver: LinearSolver, x: Any, lin: Linearization, state: Any
     ) -> _Step:
-        assert problem.structure is not None
-        scaling = np.clip(lin.hessian.diagonal(), 1e-6 * run.scale, 1e32 * run.scale)
-        damped = problem.structure.add_diagonal(lin.hessian, state.lam * scaling)
-        delta, extra = self._newton_system_step(solver, damped, lin.grad)
-        flat, g = delta.reshape(-1), lin.grad.reshape(-1)
-        predicted = -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
-        extra = {"damping": state.lam, **extra}
+        extra: dict[str, float] = {"damping": state.lam}
+        try:
+            delta, stats = self._damped_step(problem, solver, lin, state.lam * self._scaling(lin, run.scale))
+        except SingularSystemError:  # too little damping for a (nearly) singular H: more
+            return self._fail(_Step(x, lin.cost, math.nan, False, {**extra, "rho": math.nan}), state)
+        extra.update(stats)
+        predicted = model_decrease(lin, delta)
         if not predicted > 0:  # (H + λD) is SPD, so an exact solve always predicts a decrease unless g = 0
             return _Step(x, lin.cost, math.nan, False, {**extra, "rho": math.nan}, _no_descent(lin))
         x_new = run.manifold.retr(x, delta)
@@ -286,20 +330,20 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         rho = (lin.cost - f_new) / predicted
         extra["rho"] = rho
         if rho > 0:
-            # Floored: after hundreds of successes λ would underflow to 0, and 0·ν = nan on a failure.
-            t = min(2.0 * rho - 1.0, 1.0)  # (larger ρ give the floor ⅓ too; ** would overflow)
-            state.lam = max(state.lam * max(1.0 / 3.0, 1.0 - t * t * t), 1e-15)
-            state.nu = 2.0
-            return _Step(x_new, f_new, float(np.linalg.norm(flat)), True, extra)
+            # Floored: after many successes λ would underflow to 0, and 0·ν = 0 on a failure.
+            state.lam = max(state.lam / self.damping_factor, 1e-15)
+            state.nu = self.damping_factor
+            return _Step(x_new, f_new, float(np.linalg.norm(delta)), True, extra)
         return self._fail(_Step(x, lin.cost, math.nan, False, extra), state)
 
     def _fail(self, step: _Step, state: _Damping) -> _Step:
-        """A rejected step: ``λ ← λν, ν ← 2ν``; past ``max_damping`` no step of any size
-        decreases the cost, and the run stops (a collapse, judged by the undamped model)."""
-        state.lam *= state.nu
-        state.nu *= 2.0
-        if state.lam > self.max_damping:
+        """A rejected step: ``λ ← min(λν, max_damping)``, ``ν ← 2ν``; a failure at
+        ``max_damping`` means no step of any size decreases the cost, and the run stops
+        (a collapse, judged by the model with ``λ₀``)."""
+        if state.lam >= self.max_damping:
             return _Step(step.x, step.f, math.nan, False, step.extra, Status.NO_PROGRESS, True)
+        state.lam = min(state.lam * state.nu, self.max_damping)
+        state.nu *= 2.0
         return _Step(step.x, step.f, math.nan, False, step.extra)
 
     def _reject_nonfinite(self, step: _Step, state: Any) -> _Step:
@@ -309,8 +353,12 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         which the loop keeps (it only moves on accepted steps)."""
         return self._fail(_Step(step.x, step.f, math.nan, False, step.extra), state)
 
-    def _model_matrix(self, problem: LeastSquaresProblem, lin: Linearization, scale: float) -> Any:
-        """``H + λ₀D``: the model with the initial damping judges a collapse (``H`` may be singular)."""
-        assert problem.structure is not None
-        scaling = np.clip(lin.hessian.diagonal(), 1e-6 * scale, 1e32 * scale)
-        return problem.structure.add_diagonal(lin.hessian, self.initial_damping * scaling)
+    def _predicted_decrease(
+        self, problem: LeastSquaresProblem, solver: LinearSolver, lin: Linearization, scale: float
+    ) -> float:
+        """The decrease of the Gauss-Newton model for the step with ``λ₀`` (``H`` may be singular)."""
+        try:
+            delta, _ = self._damped_step(problem, solver, lin, self.initial_damping * self._scaling(lin, scale))
+        except SingularSystemError:
+            return math.nan
+        return model_decrease(lin, delta)

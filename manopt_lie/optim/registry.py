@@ -19,6 +19,7 @@ from types import MappingProxyType
 from typing import Any
 
 from .conjugate_gradient import ConjugateGradient
+from .dogleg import Dogleg
 from .gradient_descent import GradientDescent
 from .least_squares_problem import LeastSquaresProblem
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt
@@ -125,6 +126,7 @@ for _entry in (
         "lm", LevenbergMarquardt, "Levenberg-Marquardt, Nielsen damping, sparse Cholesky", LeastSquaresProblem
     ),
     OptimizerEntry("tr", TrustRegion, "Riemannian trust region, truncated CG"),
+    OptimizerEntry("dogleg", Dogleg, "Powell's dogleg trust region, sparse Cholesky", LeastSquaresProblem),
 ):
     register(_entry)
 del _entry

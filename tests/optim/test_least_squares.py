@@ -11,6 +11,7 @@ from manopt_lie.check import check_gradient
 from manopt_lie.linalg import SingularSystemError
 from manopt_lie.manifolds import Euclidean, LieGroupManifold, Power, Sphere
 from manopt_lie.optim import (
+    Dogleg,
     Factor,
     GaussNewton,
     LeastSquaresProblem,
@@ -23,7 +24,7 @@ from manopt_lie.optim.losses import L1, Cauchy, GemanMcClure, Huber, TruncatedL2
 
 from .helpers import between, pose_chain
 
-SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
+SOLVERS = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion, "dogleg": Dogleg}
 solvers = pytest.mark.parametrize("make", SOLVERS.values(), ids=SOLVERS.keys())
 
 
@@ -111,6 +112,43 @@ def test_levenberg_marquardt_history_and_damping():
     assert res.status is Status.GRADIENT_NORM
     damping = res.history.extra["damping"][1:]
     assert np.all(damping > 0) and len(damping) == res.nit
+    assert damping[0] == 1e-8  # λ₀
+    accepted = ~np.isnan(res.history.step[1:])
+    # Divided by 10 after a success, multiplied by ν ≥ 10 after a failure.
+    ratio = damping[1:] / damping[:-1]
+    np.testing.assert_allclose(ratio[accepted[:-1]], np.maximum(0.1, 1e-15 / damping[:-1][accepted[:-1]]))
+    assert np.all(ratio[~accepted[:-1]] >= 10)
+
+
+@pytest.mark.parametrize("damping", ["identity", "diagonal"])
+def test_levenberg_marquardt_dampings_reach_the_optimum(damping):
+    problem, _, x0 = pose_chain(SE3, noise=0.01)
+    reference = GaussNewton(grad_rtol=1e-12, rel_cost_decrease=0).solve(problem, x0)
+    res = LevenbergMarquardt(damping=damping, grad_rtol=1e-12, rel_cost_decrease=0).solve(problem, x0)
+    assert res.success and res.fun == pytest.approx(reference.fun, rel=1e-10)
+    with pytest.raises(ValueError, match="damping"):
+        LevenbergMarquardt(damping="marquardt")
+    with pytest.raises(ValueError, match="damping_factor"):
+        LevenbergMarquardt(damping_factor=1.0)
+
+
+def test_levenberg_marquardt_damps_a_singular_system_away():
+    """Without a gauge ``H`` is singular: Gauss-Newton refuses it (above), LM raises ``λ``
+    until the damped system solves and still reaches a minimizer."""
+    problem, _, x0 = pose_chain(SE3, n=10, closures=3)
+    free = LeastSquaresProblem(problem.manifold, problem.factors)
+    res = LevenbergMarquardt(grad_rtol=1e-10, rel_cost_decrease=0).solve(free, x0)
+    assert res.success and res.fun < 1e-16
+
+
+def test_levenberg_marquardt_leaves_the_linearization_unchanged():
+    """The damping goes onto ``H``'s diagonal in place and comes off again, bitwise."""
+    problem, _, x0 = pose_chain(SE2, n=15, closures=4)
+    hessian = problem.linearize(x0).hessian  # the run reuses this (remembered) linearization
+    before = hessian.data.copy()
+    res = LevenbergMarquardt(max_iterations=1).solve(problem, x0)
+    assert res.nit == 1
+    np.testing.assert_array_equal(hessian.data, before)
 
 
 def test_problem_validation():

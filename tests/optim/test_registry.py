@@ -31,11 +31,11 @@ DOCS = Path(__file__).resolve().parents[2] / "docs" / "optimizers.md"
 
 
 def test_the_registered_optimizers():
-    assert list(OPTIMIZERS) == ["gd", "cg", "gn", "lm", "tr"]
+    assert list(OPTIMIZERS) == ["gd", "cg", "gn", "lm", "tr", "dogleg"]
     for name, entry in OPTIMIZERS.items():
         assert entry.name == name and get_optimizer(name) is entry
     assert get_optimizer("lm").summary == "Levenberg-Marquardt, Nielsen damping, sparse Cholesky"
-    assert {n for n, e in OPTIMIZERS.items() if e.accepts is LeastSquaresProblem} == {"gn", "lm"}
+    assert {n for n, e in OPTIMIZERS.items() if e.accepts is LeastSquaresProblem} == {"gn", "lm", "dogleg"}
 
 
 def test_make_and_accepts():
