@@ -23,6 +23,14 @@ Point = Any
 Tangent = Any
 
 
+def coordinate_inner(u: Any, v: Any) -> float:
+    """``Σᵢ uᵢvᵢ`` over every entry of two arrays (``np.vdot``; broadcast if the shapes differ):
+    :meth:`Manifold.total_inner` for a metric that is Euclidean in the stored coordinates."""
+    if np.shape(u) == np.shape(v):
+        return float(np.vdot(u, v))
+    return float(np.sum(np.multiply(u, v)))
+
+
 class MissingOperationError(NotImplementedError):
     """An optional manifold operation that this manifold does not provide."""
 
@@ -56,6 +64,18 @@ class Manifold(ABC):
     def norm(self, x: Point, v: Tangent) -> Any:
         """``‖v‖_x = √⟨v, v⟩_x``."""
         return np.sqrt(self.inner(x, v, v))
+
+    def total_inner(self, x: Point, u: Tangent, v: Tangent) -> float:
+        """``Σ_b ⟨u_b, v_b⟩_{x_b}``: the metric summed over any batch, as a float — the
+        scalar product of the optimizers, for which a batch of points is one point of a
+        power manifold.
+
+        The default sums :meth:`inner`; manifolds whose metric is the Euclidean one of
+        their stored coordinates (embedded manifolds, Lie groups in Cartesian tangent
+        coordinates) override it by one ``np.vdot`` over all entries, a single BLAS call
+        instead of a reduction per batch axis.
+        """
+        return float(np.sum(self.inner(x, u, v)))
 
     @abstractmethod
     def proj(self, x: Point, u: Any) -> Tangent:

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import NotOnManifoldError
 from ..lie._checks import FloatArray, as_batch
-from .base import Manifold
+from .base import Manifold, coordinate_inner
 
 
 class EmbeddedManifold(Manifold):
@@ -31,6 +31,10 @@ class EmbeddedManifold(Manifold):
     def inner(self, x: FloatArray, u: FloatArray, v: FloatArray) -> Any:
         """``⟨u, v⟩ = Σ u ⊙ v`` over the point axes."""
         return np.sum(np.multiply(u, v), axis=self._axes())
+
+    def total_inner(self, x: FloatArray, u: FloatArray, v: FloatArray) -> float:
+        """``Σ u ⊙ v`` over every entry, batch included (one ``np.vdot``)."""
+        return coordinate_inner(u, v)
 
     def zero_vector(self, x: FloatArray) -> FloatArray:
         return np.zeros(np.shape(x))

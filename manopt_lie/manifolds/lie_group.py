@@ -30,7 +30,7 @@ from ..errors import ShapeError
 from ..lie import SE2, SE3, LieGroup, RnGroup
 from ..lie._checks import FloatArray, as_batch
 from ..lie._matrix import assemble, split
-from .base import Manifold
+from .base import Manifold, coordinate_inner
 
 
 def _t(a: FloatArray) -> FloatArray:
@@ -97,6 +97,10 @@ class LieGroupManifold(Manifold):
 
     def inner(self, x: LieGroup, u: FloatArray, v: FloatArray) -> Any:
         return np.einsum("...i,...i->...", u, v)
+
+    def total_inner(self, x: LieGroup, u: FloatArray, v: FloatArray) -> float:
+        """``Σ τ₁ᵀτ₂`` over the batch (one ``np.vdot``)."""
+        return coordinate_inner(u, v)
 
     def retr(self, x: LieGroup, v: FloatArray) -> LieGroup:
         if self.geometry == "group":

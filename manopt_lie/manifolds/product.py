@@ -74,6 +74,9 @@ class Product(Manifold):
     def inner(self, x: Point, u: Tangent, v: Tangent) -> Any:
         return sum(m.inner(xi, ui, vi) for m, xi, ui, vi in self._zip(x, u, v))
 
+    def total_inner(self, x: Point, u: Tangent, v: Tangent) -> float:
+        return sum(m.total_inner(xi, ui, vi) for m, xi, ui, vi in zip(self.manifolds, x, u, v, strict=True))
+
     def scale(self, v: Tangent, s: Any) -> Tangent:
         return ProductVector(m.scale(vi, s) for m, vi in self._zip(v))
 
@@ -156,6 +159,9 @@ class Power(Manifold):
 
     def inner(self, x: Point, u: Tangent, v: Tangent) -> Any:
         return self._sum(self.manifold.inner(x, u, v))
+
+    def total_inner(self, x: Point, u: Tangent, v: Tangent) -> float:
+        return self.manifold.total_inner(x, u, v)
 
     def scale(self, v: Tangent, s: Any) -> Tangent:
         s = np.asarray(s, dtype=np.float64)

@@ -51,9 +51,14 @@ def max_abs(v: Any) -> float:
 def safe_norm(manifold: Manifold, x: Any, v: Any) -> float:
     """``‖v‖_x = √⟨v, v⟩_x`` summed over any batch, computed as ``a·‖v/a‖`` with
     ``a = max|vᵢ|`` when ``⟨v, v⟩`` is outside ``[1e-250, 1e250]`` (the metric is
-    bilinear, so the rescaling is exact)."""
+    bilinear, so the rescaling is exact).
+
+    The common case is one :meth:`~manopt_lie.manifolds.Manifold.total_inner` (a single
+    ``np.vdot`` on most manifolds) and a range test; only a norm outside the range pays
+    for the second pass.
+    """
     with np.errstate(over="ignore", under="ignore"):  # recomputed below if so
-        sq = float(np.sum(manifold.inner(x, v, v)))
+        sq = manifold.total_inner(x, v, v)
     if _SQ_LOW < sq < _SQ_HIGH:
         return math.sqrt(sq)
     if math.isnan(sq):
@@ -62,7 +67,7 @@ def safe_norm(manifold: Manifold, x: Any, v: Any) -> float:
     if not (0.0 < a < math.inf):
         return a  # 0, inf or nan
     w = v / a
-    return a * math.sqrt(float(np.sum(manifold.inner(x, w, w))))
+    return a * math.sqrt(manifold.total_inner(x, w, w))
 
 
 def check_result(owner: str, name: str, value: Any, expected: Any, what: str) -> None:

@@ -26,7 +26,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -39,6 +39,7 @@ __all__ = [
     "StrongWolfe",
     "armijo",
     "initial_step",
+    "newton_step",
     "probe_decrease",
     "select_line_search",
 ]
@@ -55,7 +56,9 @@ class LineSearchResult:
     optimizer to reuse; ``None`` otherwise. ``wolfe`` says whether ``x`` satisfies the
     strong Wolfe conditions: a strong Wolfe search that runs out of evaluations falls
     back to its best point with sufficient decrease. ``success`` is ``False`` only when
-    no trial decreased the cost enough; ``x`` is then ``x₀``.
+    no trial decreased the cost enough; ``x`` is then ``x₀``. ``transported`` is
+    ``T_{x₀→x}(η)`` when the search computed it for ``φ'(α)`` (with ``grad``), so that
+    conjugate gradients and L-BFGS need not transport ``η`` again; ``None`` otherwise.
     """
 
     x: Any
@@ -67,6 +70,7 @@ class LineSearchResult:
     grad: Any = None
     ngev: int = 0
     wolfe: bool = False
+    transported: Any = None
 
 
 def initial_step(
@@ -95,6 +99,11 @@ def initial_step(
     if not (alpha * d_norm > _EPS):  # also nan
         alpha = 1.0 / d_norm
     return min(alpha, max_step / d_norm)
+
+
+def newton_step(d_norm: float, max_step: float) -> float:
+    """``α = 1``, at most ``max_step/‖η‖``: the first trial along a quasi-Newton direction."""
+    return min(1.0, max_step / d_norm)
 
 
 def armijo(
@@ -173,13 +182,16 @@ class LineSearch(ABC):
         *,
         f_prev: float | None = None,
         alpha_prev: float | None = None,
+        alpha0: float | None = None,
     ) -> LineSearchResult:
         """Search from ``x₀`` (cost ``f₀``) along ``d`` (``d_norm = ‖d‖``,
         ``slope = ⟨grad f(x₀), d⟩ < 0``).
 
         ``cost`` and ``grad`` are the optimizer's (counted) evaluations; ``f_prev`` and
         ``alpha_prev`` are the previous iterate's cost and accepted ``α`` (``None`` at the
-        first iteration), for the first trial.
+        first iteration), for the first trial. ``alpha0``, if given, is the optimizer's own
+        first trial (e.g. a Barzilai–Borwein step), used instead of the search's rule (still
+        at most ``typical_dist/‖η‖``).
         """
 
 
@@ -201,6 +213,10 @@ class Backtracking(LineSearch):
         The first trial is at most ``growth`` times the previous accepted ``α``.
     interpolate : bool
         Backtrack to the quadratic interpolant's minimizer (``True``) or by ``contraction``.
+    initial : {"quadratic", "newton"}
+        The first trial: :func:`initial_step` (``optimism``, ``growth``), or ``"newton"``:
+        ``α = 1`` (at most ``typical_dist/‖η‖``), the step of a quasi-Newton direction
+        (:class:`~manopt_lie.optim.LBFGS`), which carries its own scale.
     """
 
     sufficient_decrease: float = 1e-4
@@ -209,12 +225,15 @@ class Backtracking(LineSearch):
     optimism: float = 2.0
     growth: float = 4.0
     interpolate: bool = True
+    initial: str = "quadratic"
 
     def __post_init__(self) -> None:
         if not (0 < self.sufficient_decrease < 1 and 0 < self.contraction < 1):
             raise ValueError("line search: need 0 < sufficient_decrease < 1 and 0 < contraction < 1")
         if not (self.optimism > 0 and self.growth > 0 and self.max_backtracks >= 0):
             raise ValueError("line search: need optimism > 0, growth > 0 and max_backtracks >= 0")
+        if self.initial not in ("quadratic", "newton"):
+            raise ValueError(f"line search: initial must be 'quadratic' or 'newton', got {self.initial!r}")
 
     def search(
         self,
@@ -229,12 +248,18 @@ class Backtracking(LineSearch):
         *,
         f_prev: float | None = None,
         alpha_prev: float | None = None,
+        alpha0: float | None = None,
     ) -> LineSearchResult:
         """Armijo backtracking along ``R_{x₀}(α d)`` (``grad`` is not used)."""
-        alpha = initial_step(
-            f0, f_prev, slope, d_norm, manifold.typical_dist,
-            optimism=self.optimism, alpha_prev=alpha_prev, growth=self.growth,
-        )  # fmt: skip
+        if alpha0 is not None:
+            alpha = min(alpha0, manifold.typical_dist / d_norm)
+        elif self.initial == "newton":
+            alpha = newton_step(d_norm, manifold.typical_dist)
+        else:
+            alpha = initial_step(
+                f0, f_prev, slope, d_norm, manifold.typical_dist,
+                optimism=self.optimism, alpha_prev=alpha_prev, growth=self.growth,
+            )  # fmt: skip
         return armijo(
             cost, manifold, x0, f0, d, d_norm, slope, alpha,
             sufficient_decrease=self.sufficient_decrease, contraction=self.contraction,
@@ -264,15 +289,16 @@ def _quadratic_min(a: float, fa: float, da: float, b: float, fb: float) -> float
     return a - da * h * h / (2.0 * curv) if curv > 0 else math.nan
 
 
-@dataclass(frozen=True)
-class _Trial:
-    """A trial step: ``φ(α)``, ``φ'(α)`` (``nan`` until evaluated), the point and its gradient."""
+class _Trial(NamedTuple):
+    """A trial step: ``φ(α)``, ``φ'(α)`` (``nan`` until evaluated), the point, its gradient
+    and ``T_{x₀→y}(η)``."""
 
     alpha: float
     f: float
     df: float = math.nan
     y: Any = None
     g: Any = None
+    td: Any = None
 
 
 @dataclass(frozen=True)
@@ -294,7 +320,9 @@ class StrongWolfe(LineSearch):
     *First trial*: ``initial="quadratic"`` is :func:`initial_step` (capped at ``growth``
     times the previous ``α``); ``initial="previous"`` is the previous accepted ``α``
     (for conjugate gradients, whose steps vary slowly). Both are ``1/‖η‖`` at the first
-    iteration and at most ``typical_dist/‖η‖`` (later trials may go further). With a
+    iteration and at most ``typical_dist/‖η‖`` (later trials may go further).
+    ``initial="newton"`` is ``α = 1`` (:func:`newton_step`; L-BFGS, whose direction
+    carries its scale), also capped at ``typical_dist/‖η‖``. With a
     finite ``refine_tol``, a first trial ``α₀`` with sufficient decrease is first refined
     to the minimizer ``α_q`` of the quadratic through ``φ(0), φ'(0), φ(α₀)`` (one more
     cost, no gradient) unless ``|α_q − α₀| ≤ refine_tol·α₀``: a nearly exact step at one
@@ -308,7 +336,7 @@ class StrongWolfe(LineSearch):
     max_evaluations : int
         Cost evaluations before giving up; the search then returns its best point with
         sufficient decrease (``wolfe=False``), or fails if there is none.
-    initial : {"quadratic", "previous"}
+    initial : {"quadratic", "previous", "newton"}
         The first trial, see above.
     optimism, growth : float
         The factor on the quadratic first trial and its cap relative to the previous ``α``.
@@ -330,12 +358,14 @@ class StrongWolfe(LineSearch):
             raise ValueError(f"strong Wolfe: need 0 < sufficient_decrease < curvature < 1, got c1={c1!r}, c2={c2!r}")
         if not (self.max_evaluations >= 1 and self.optimism > 0 and self.growth > 0 and self.refine_tol >= 0):
             raise ValueError("strong Wolfe: need max_evaluations >= 1, optimism > 0, growth > 0 and refine_tol >= 0")
-        if self.initial not in ("quadratic", "previous"):
-            raise ValueError(f"strong Wolfe: initial must be 'quadratic' or 'previous', got {self.initial!r}")
+        if self.initial not in ("quadratic", "previous", "newton"):
+            raise ValueError(f"strong Wolfe: initial must be 'quadratic', 'previous' or 'newton', got {self.initial!r}")
 
     def _first_trial(
         self, f0: float, f_prev: float | None, slope: float, d_norm: float, max_step: float, alpha_prev: float | None
     ) -> float:
+        if self.initial == "newton":
+            return newton_step(d_norm, max_step)
         if self.initial == "previous":
             alpha = alpha_prev if alpha_prev is not None and alpha_prev * d_norm > _EPS else 1.0 / d_norm
             return min(alpha, max_step / d_norm)
@@ -356,6 +386,7 @@ class StrongWolfe(LineSearch):
         *,
         f_prev: float | None = None,
         alpha_prev: float | None = None,
+        alpha0: float | None = None,
     ) -> LineSearchResult:
         """Bracketing and zoom along ``R_{x₀}(α d)``; see the class docstring."""
         c1, c2 = self.sufficient_decrease, self.curvature
@@ -372,15 +403,16 @@ class StrongWolfe(LineSearch):
             nonlocal ngev
             ngev += 1
             g = grad(t.y)
-            df = float(np.sum(manifold.inner(t.y, g, manifold.transp(x0, t.y, d))))
+            td = manifold.transp(x0, t.y, d)
+            df = manifold.total_inner(t.y, g, td)
             if not math.isfinite(df):
                 return _Trial(t.alpha, math.inf, math.nan, t.y, None)
-            return _Trial(t.alpha, t.f, df, t.y, g)
+            return _Trial(t.alpha, t.f, df, t.y, g, td)
 
         def done(t: _Trial, wolfe: bool) -> LineSearchResult:
             if t.alpha == 0.0:
                 return LineSearchResult(x0, f0, 0.0, 0.0, nfev, False, None, ngev, False)
-            return LineSearchResult(t.y, t.f, t.alpha, t.alpha * d_norm, nfev, True, t.g, ngev, wolfe)
+            return LineSearchResult(t.y, t.f, t.alpha, t.alpha * d_norm, nfev, True, t.g, ngev, wolfe, t.td)
 
         def decreases(t: _Trial) -> bool:
             return t.f <= f0 + c1 * t.alpha * slope and t.f < f0
@@ -389,7 +421,10 @@ class StrongWolfe(LineSearch):
             return abs(t.df) <= -c2 * slope
 
         prev = _Trial(0.0, f0, slope)
-        t = value(self._first_trial(f0, f_prev, slope, d_norm, manifold.typical_dist, alpha_prev))
+        if alpha0 is None:
+            t = value(self._first_trial(f0, f_prev, slope, d_norm, manifold.typical_dist, alpha_prev))
+        else:
+            t = value(min(alpha0, manifold.typical_dist / d_norm))
         if math.isfinite(self.refine_tol) and decreases(t) and t.f < f0:
             a = t.alpha
             q = _quadratic_min(0.0, f0, slope, a, t.f)  # nan if concave: look further

@@ -208,12 +208,24 @@ class Run:
         self.nhev += 1
         return self.problem.hess(x, v)
 
+    def hess_operator(self, x: Any) -> Callable[[Any], Any]:
+        """``v ↦ Hess f(x)[v]`` at a fixed ``x`` (:meth:`Problem.hess_operator`: what the
+        point's memo lookups cost is paid once), counted like :meth:`hess`."""
+        apply = self.problem.hess_operator(x)
+
+        def counted(v: Any) -> Any:
+            self.nhev += 1
+            return apply(v)
+
+        return counted
+
     def norm(self, x: Any, v: Any) -> float:
         """``‖v‖_x`` summed over any batch, safe from under- and overflow."""
         return safe_norm(self.manifold, x, v)
 
     def inner(self, x: Any, u: Any, v: Any) -> float:
-        return float(np.sum(self.manifold.inner(x, u, v)))
+        """``⟨u, v⟩_x`` summed over any batch (:meth:`~manopt_lie.manifolds.Manifold.total_inner`)."""
+        return self.manifold.total_inner(x, u, v)
 
     def roundoff(self, f: float) -> float:
         """``ROUNDOFF·max(s, |f|)``: cost changes this small are indistinguishable from round-off."""
@@ -246,7 +258,10 @@ class Run:
         self._records.append((f, grad_norm, step, now))
         self._x = x
         for key, value in extra.items():
-            self._extra.setdefault(key, [math.nan] * (len(self._records) - 1)).append(value)
+            column = self._extra.get(key)
+            if column is None:  # a key first seen now: nan for the records before
+                column = self._extra[key] = [math.nan] * (len(self._records) - 1)
+            column.append(value)
         logger.debug("%s %4d  f = %.12g  |grad| = %.3e  step = %.3e", self.name, self.nit, f, grad_norm, step)
         if self.progress is not None:
             self.progress.row(self.nit, f, grad_norm, step, now)

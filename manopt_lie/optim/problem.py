@@ -207,6 +207,28 @@ class Problem:
             return self._manifold.egrad2rgrad(x, self._euclidean_gradient(x))
         raise NotImplementedError("Problem.grad: build the Problem with egrad=... or rgrad=...")
 
+    def hess_operator(self, x: Point) -> Callable[[Tangent], Tangent]:
+        """``v ↦ Hess f(x)[v]`` at a fixed ``x``, for the many products of one trust-region
+        step: the Euclidean gradient at ``x`` (and the manifold's conversion) is looked up
+        once, not at every product. The products are those of :meth:`hess` (a subclass
+        overriding :meth:`hess` gets its own method called).
+
+        Raises
+        ------
+        NotImplementedError
+            If the problem was built without ``ehess`` or ``rhess``.
+        """
+        if type(self).hess is not Problem.hess:
+            return lambda v: self.hess(x, v)
+        rhess = self._rhess
+        if rhess is not None:
+            return lambda v: rhess(x, v)
+        ehess = self._ehess
+        if ehess is None or self._egrad is None:
+            raise NotImplementedError("Problem.hess: build the Problem with ehess=... (and egrad) or rhess=...")
+        m, egrad = self._manifold, self._euclidean_gradient(x)
+        return lambda v: m.ehess2rhess(x, egrad, ehess(x, m.to_ambient(x, v)), v)
+
     def hess(self, x: Point, v: Tangent) -> Tangent:
         """The Riemannian Hessian applied to ``v``: ``Hess f(x)[v]``, a tangent vector at ``x``.
 

@@ -104,7 +104,7 @@ class TrustRegion(Optimizer):
 
     def _hessian(self, run: Run, x: Any, g: Any) -> Callable[[Any], Any]:
         if run.problem.has_hessian:
-            return lambda v: run.hess(x, v)
+            return run.hess_operator(x)
         m = run.manifold
 
         def finite_difference(v: Any) -> Any:
