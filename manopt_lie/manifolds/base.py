@@ -26,6 +26,8 @@ Tangent = Any
 def coordinate_inner(u: Any, v: Any) -> float:
     """``Σᵢ uᵢvᵢ`` over every entry of two arrays (``np.vdot``; broadcast if the shapes differ):
     :meth:`Manifold.total_inner` for a metric that is Euclidean in the stored coordinates."""
+    if type(u) is np.ndarray and type(v) is np.ndarray and u.shape == v.shape:  # the hot path
+        return float(np.vdot(u, v))
     if np.shape(u) == np.shape(v):
         return float(np.vdot(u, v))
     return float(np.sum(np.multiply(u, v)))

@@ -62,11 +62,17 @@ class EmbeddedManifold(Manifold):
         self._checked_array(x, name)
 
 
+def transpose(a: FloatArray) -> FloatArray:
+    """``Aᵀ`` on the last two axes (a view; the array method where it is one, without the
+    dispatch of ``np.swapaxes``, which the projections call several times per product)."""
+    return a.swapaxes(-1, -2) if type(a) is np.ndarray else np.swapaxes(a, -1, -2)
+
+
 def sym(a: FloatArray) -> FloatArray:
     """``(A + Aᵀ)/2`` on the last two axes."""
-    return 0.5 * (a + np.swapaxes(a, -1, -2))
+    return 0.5 * (a + transpose(a))
 
 
 def skew(a: FloatArray) -> FloatArray:
     """``(A − Aᵀ)/2`` on the last two axes."""
-    return 0.5 * (a - np.swapaxes(a, -1, -2))
+    return 0.5 * (a - transpose(a))

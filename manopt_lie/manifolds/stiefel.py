@@ -17,10 +17,7 @@ import scipy.linalg
 from ..lie import _matrix, _so3
 from ..lie._checks import FloatArray
 from .embedded import EmbeddedManifold, skew, sym
-
-
-def _t(a: FloatArray) -> FloatArray:
-    return np.swapaxes(a, -1, -2)
+from .embedded import transpose as _t
 
 
 def _qf(a: FloatArray) -> FloatArray:

@@ -1,12 +1,13 @@
 """Problems and Riemannian optimizers.
 
 Every optimizer is listed once, in :data:`OPTIMIZERS` (:mod:`.registry`), by
-its short name (``"gd"``, ``"cg"``, ``"gn"``, ``"lm"``, ``"tr"``, ``"dogleg"``).
+its short name (``"gd"``, ``"cg"``, ``"gn"``, ``"lm"``, ``"tr"``, ``"lbfgs"``, ``"dogleg"``).
 """
 
 from .conjugate_gradient import ConjugateGradient
 from .dogleg import Dogleg
 from .gradient_descent import GradientDescent
+from .lbfgs import LBFGS
 from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
 from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
 from .marginals import MarginalCovariances, gtsam_tangent_order, marginal_covariances, to_gtsam_order, to_left_frame
@@ -28,6 +29,7 @@ __all__ = [
     "GradientDescent",
     "ConjugateGradient",
     "TrustRegion",
+    "LBFGS",
     "PRECONDITIONERS",
     "Preconditioner",
     "LineSearch",

@@ -125,6 +125,8 @@ def same_point(snap: Any, x: Any) -> bool:
         return type(x) is snap.cls and bool(np.array_equal(x.data, snap.data))
     if isinstance(snap, tuple):
         return isinstance(x, tuple) and len(x) == len(snap) and all(map(same_point, snap, x))
+    if type(x) is np.ndarray:  # the hot path: one comparison, no conversions
+        return x.shape == snap.shape and bool((x == snap).all())
     if isinstance(x, (LieGroup, tuple)):
         return False
     return np.shape(x) == snap.shape and bool(np.array_equal(x, snap))

@@ -131,7 +131,7 @@ class ConjugateGradient(Optimizer):
             )
             beta = 0.0
             if not restart:
-                d_old = m.transp(x, x_new, d)
+                d_old = m.transp(x, x_new, d) if ls.transported is None else ls.transported  # Wolfe made it
                 beta = self._beta(run, x_new, g_new, g_new_norm, g_old, g_norm, d_old)
                 d = -g_new + d_old * beta
                 slope = run.inner(x_new, g_new, d)

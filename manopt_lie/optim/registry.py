@@ -21,6 +21,7 @@ from typing import Any
 from .conjugate_gradient import ConjugateGradient
 from .dogleg import Dogleg
 from .gradient_descent import GradientDescent
+from .lbfgs import LBFGS
 from .least_squares_problem import LeastSquaresProblem
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt
 from .optimizer import Optimizer, StoppingCriteria
@@ -126,6 +127,7 @@ for _entry in (
         "lm", LevenbergMarquardt, "Levenberg-Marquardt, Nielsen damping, sparse Cholesky", LeastSquaresProblem
     ),
     OptimizerEntry("tr", TrustRegion, "Riemannian trust region, truncated CG"),
+    OptimizerEntry("lbfgs", LBFGS, "Riemannian limited-memory BFGS, cautious updates, strong Wolfe"),
     OptimizerEntry("dogleg", Dogleg, "Powell's dogleg trust region, sparse Cholesky", LeastSquaresProblem),
 ):
     register(_entry)

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from ._values import structure
 from .optimizer import Optimizer, Run, StoppingCriteria
@@ -13,8 +12,7 @@ from .preconditioners import Preconditioner, bind_preconditioner, check_precondi
 from .result import OptimizeResult, Status
 
 
-@dataclass(frozen=True)
-class _InnerResult:
+class _InnerResult(NamedTuple):
     eta: Any
     model_decrease: float  # m(0) − m(η)
     iterations: int
@@ -141,15 +139,16 @@ class TrustRegion(Optimizer):
         to ``‖g‖``, is no longer small, and CG cannot reduce a normal component.
         """
         m = run.manifold
+        inner = m.total_inner
         max_inner = self.max_inner_iterations or max(1, m.dim)
         if not g_norm > 0:  # a critical point: the model's minimizer is η = 0
             return _InnerResult(m.zero_vector(x), 0.0, 0, "residual")
         inv_sigma = 1.0 / g_norm
         r0 = (m.proj(x, g) if reproject else g) * inv_sigma
-        eta, h_eta = m.zero_vector(x), m.zero_vector(x)  # h_eta = H η / σ
+        eta = h_eta = m.zero_vector(x)  # h_eta = H η / σ (never updated in place)
 
         def result(eta: Any, h_eta: Any, j: int, reason: str) -> _InnerResult:
-            decrease = -g_norm * (run.inner(x, r0, eta) + 0.5 * run.inner(x, eta, h_eta))
+            decrease = -g_norm * (inner(x, r0, eta) + 0.5 * inner(x, eta, h_eta))
             return _InnerResult(eta, decrease, j, reason)
 
         r = r0
@@ -164,12 +163,18 @@ class TrustRegion(Optimizer):
             z = z * c
         radius_sq = radius * radius / c
         d = -z
-        rz = run.inner(x, r, z)
+        rz = inner(x, r, z)
         target = min(_power(g_norm, self.theta), self.kappa)  # ‖r_j‖/‖r_0‖ at which to stop
+        # ‖r‖ ≤ target tested on squares (‖r₀‖ = 1), unless the square of target underflows.
+        target_sq = target * target
+
+        def small(r: Any) -> bool:
+            return inner(x, r, r) <= target_sq if target > 1e-120 else run.norm(x, r) <= target
+
         e_pe, e_pd, d_pd = 0.0, 0.0, rz  # ⟨η, P'⁻¹η⟩, ⟨η, P'⁻¹d⟩, ⟨d, P'⁻¹d⟩: the region's norm
         for j in range(1, max_inner + 1):
             hd = hess(d) * inv_sigma
-            d_hd = run.inner(x, d, hd)
+            d_hd = inner(x, d, hd)
             if not (math.isfinite(d_hd) and math.isfinite(rz)):
                 return _InnerResult(eta, math.nan, j, "non-finite")
             alpha = rz / d_hd if d_hd != 0 else math.inf
@@ -183,10 +188,10 @@ class TrustRegion(Optimizer):
                 return result(eta + d * tau, h_eta + hd * tau, j, reason)
             eta, h_eta, e_pe = eta + d * alpha, h_eta + hd * alpha, e_pe_new
             r = r + hd * alpha
-            if run.norm(x, r) <= target:
+            if small(r):
                 return result(eta, h_eta, j, "residual")
             z = precon(x, r) if c == 1.0 else precon(x, r) * c
-            rz, rz_old = run.inner(x, r, z), rz
+            rz, rz_old = inner(x, r, z), rz
             beta = rz / rz_old
             e_pd = beta * (e_pd + alpha * d_pd)
             d_pd = rz + beta * beta * d_pd

@@ -31,7 +31,7 @@ DOCS = Path(__file__).resolve().parents[2] / "docs" / "optimizers.md"
 
 
 def test_the_registered_optimizers():
-    assert list(OPTIMIZERS) == ["gd", "cg", "gn", "lm", "tr", "dogleg"]
+    assert list(OPTIMIZERS) == ["gd", "cg", "gn", "lm", "tr", "lbfgs", "dogleg"]
     for name, entry in OPTIMIZERS.items():
         assert entry.name == name and get_optimizer(name) is entry
     assert get_optimizer("lm").summary == "Levenberg-Marquardt, Nielsen damping, sparse Cholesky"
@@ -48,7 +48,7 @@ def test_make_and_accepts():
     lsq, _, _ = pose_chain(SE2, n=10, closures=3)
     smooth = Problem(Euclidean(2), cost=lambda x: x @ x, egrad=lambda x: 2 * x)
     assert all(e.accepts_problem(lsq) for e in OPTIMIZERS.values())
-    assert [e.name for e in OPTIMIZERS.values() if e.accepts_problem(smooth)] == ["gd", "cg", "tr"]
+    assert [e.name for e in OPTIMIZERS.values() if e.accepts_problem(smooth)] == ["gd", "cg", "tr", "lbfgs"]
     assert get_optimizer("gd").make().solve(smooth, np.ones(2)).success
 
 
