@@ -109,7 +109,7 @@ class Entry:
         if not costs or bad:
             raise CatalogueError(f"{where}: costs must be a non-empty subset of {kind.graph.costs}, got {bad}")
         for cost, value in self.published.items():
-            if cost not in self.costs or not isinstance(value, int | float) or not math.isfinite(value):
+            if cost not in costs or not isinstance(value, int | float) or not math.isfinite(value):
                 raise CatalogueError(f"{where}: published optimum for {cost!r} must be a number for a listed cost")
 
     @property

@@ -316,6 +316,7 @@ class LandmarkGraph(Graph):
                                                  offset=self.sensor_offsets, loss=robust, name="observations",
                                                  blocks=("poses", "landmarks")))  # fmt: skip
         if len(self.prior_poses):
+            assert self.prior_means is not None and self.prior_information is not None  # checked on construction
             root = costs.information_sqrt(self.prior_information, _Names(self.prior_names), repair=repair_information)
             factors.append(prior_factor(self.prior_poses, self.prior_means, Gaussian(root), loss=robust,
                                         name="priors", blocks="poses"))  # fmt: skip

@@ -282,6 +282,7 @@ def dumps_tum(trajectory: Trajectory) -> str:
         raise ValueError(f"{trajectory.name} has no timestamps; TUM files need them (write KITTI, or give stamps)")
     t = trajectory.lift()
     q = t.poses.rotation().as_quaternion()  # type: ignore[attr-defined]
+    assert t.stamps is not None  # lifting keeps them
     return _lines(np.column_stack([t.stamps, t.positions, q]))
 
 

@@ -292,8 +292,9 @@ def relaxation(graph: MeasurementGraph, *, backend: str = "auto") -> Relaxation:
     scale = float(np.max(M.diagonal()))
     z = np.asarray(graph.measurements.as_matrix())
     w2 = weights**2
-    tau, trans = (w2[:, d], z[:, :d, d].copy()) if nt else (None, None)
+    tau: FloatArray | None = w2[:, d] if nt else None
+    measured_t: FloatArray | None = z[:, :d, d].copy() if nt else None
     return Relaxation(
         graph, n, d, nt, M, scale, A, B, Bt, C, block_pos, diag_pos, factor, graph.edges, w2[:, 0], tau,
-        z[:, :d, :d].copy(), trans,
+        z[:, :d, :d].copy(), measured_t,
     )  # fmt: skip
