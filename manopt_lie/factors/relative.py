@@ -17,7 +17,8 @@ from numpy.typing import ArrayLike
 from ..lie import LieGroup
 from ..optim import Factor
 from ._common import Blocks, Loss, as_group, edges, group_measurements, whitened_factor
-from .noise import NoiseModel
+from ._poses import FUSED_GROUPS, between_kernel
+from .noise import NoiseModel, Unit, as_noise_model
 
 __all__ = ["between_factor", "prior_factor", "rotation_factor"]
 
@@ -73,6 +74,15 @@ def between_factor(
     v = edges(variables, 2, name)
     z = group_measurements(measured, len(v), name)
     group, z_inv = type(z), z.inverse()
+    if group in FUSED_GROUPS:  # SE(2), SE(3): one fused pass, whitening included (``_poses``)
+        model = as_noise_model(noise, len(v), group.dim, name)
+        sqrt_info = None if isinstance(model, Unit) else np.ascontiguousarray(model.sqrt_information)
+        fused = between_kernel(group, np.ascontiguousarray(z_inv.as_matrix()), sqrt_info)
+
+        def residual(xi: Any, xj: Any, jac: bool = False) -> Any:
+            return fused(as_group(xi, group, name), as_group(xj, group, name), jac)
+
+        return Factor(v, residual, loss=loss, name=name, blocks=blocks, fresh_jacobians=True)
 
     def kernel(xi: Any, xj: Any, jac: bool = False) -> Any:
         return _between(as_group(xi, group, name), as_group(xj, group, name), z_inv, jac)

@@ -31,7 +31,6 @@ class FactorIndex:
     var_ids: IntArray  # (m, arity)
     residual_dim: int
     slot_dims: tuple[int, ...]
-    jac_gather: IntArray  # (m·r·D,) position in A.ravel() of each CSR entry of J
 
     @property
     def m(self) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
@@ -11,6 +12,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
+from ._analyses import ANALYSES, pattern_key
 from ._backends import _PACKAGES, BACKENDS, Backend, available_backends
 from ._vector import dot, norm
 from .errors import SingularSystemError
@@ -66,12 +68,20 @@ class CholeskySolver:
     backend : str
         The backend in use.
     n_analyses : int
-        How many symbolic analyses ran (stays 1 while the pattern is fixed).
+        How many times a pattern was analysed (stays 1 while the pattern is fixed),
+        whether anew or taken from the pool below.
 
     Notes
     -----
     ``H`` must store both triangles (as :class:`BlockStructure` does) and be
-    symmetric; only the pattern is checked for that.
+    symmetric; only the pattern is checked for that (not for the pattern of the
+    structure a solver was bound to, symmetric by construction).
+
+    Analyses are reused across solvers: a solver lends its analysed backend to a
+    process-wide pool (:mod:`._analyses`) when it is garbage-collected, and the
+    next solver of the same pattern takes it instead of analysing again — so a
+    problem solved again, or another problem of the same graph, skips its
+    ordering and symbolic factorization (``clear_analysis_cache()`` empties the pool).
 
     Nothing garbage is ever returned. Every factorization is followed by the
     solve of a fixed random probe ``z``, and every solution ``x`` of
@@ -106,6 +116,8 @@ class CholeskySolver:
         self._indices: NDArray[np.signedinteger] | None = None
         self._probe = np.empty(0)
         self._H: sp.csc_matrix | None = None
+        self._trusted: tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]] | None = None
+        self._lend: weakref.finalize | None = None
 
     @staticmethod
     def available_backends() -> tuple[str, ...]:
@@ -117,8 +129,10 @@ class CholeskySolver:
     def bind(self, structure: BlockStructure) -> CholeskySolver:
         """A fresh solver with these settings and no analysis, for one run
         (:class:`~manopt_lie.linalg.LinearSolver`); the structure's pattern is
-        analysed at the first call."""
-        return CholeskySolver(self.backend, rtol=self.rtol)
+        analysed at the first call (or taken from the pool of analyses)."""
+        solver = CholeskySolver(self.backend, rtol=self.rtol)
+        solver._trusted = (structure.indptr, structure.indices)
+        return solver
 
     @property
     def stats(self) -> Mapping[str, float]:
@@ -143,14 +157,34 @@ class CholeskySolver:
         if not H.has_canonical_format:
             H = H.copy()
             H.sum_duplicates()
-        pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
-        if (pattern != pattern.T).nnz:
-            raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
-        self._impl = BACKENDS[self.backend](H.indptr, H.indices)
+        key = pattern_key(self.backend, H.indptr, H.indices)
+        impl = ANALYSES.acquire(key)
+        if impl is None:
+            trusted = self._trusted is not None and all(
+                _same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
+            )
+            if not trusted:
+                pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
+                if (pattern != pattern.T).nnz:
+                    raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
+            impl = BACKENDS[self.backend](H.indptr, H.indices)
+        if self._lend is not None:
+            self._lend()  # the previous pattern's backend goes back to the pool
+        self._lend = weakref.finalize(self, ANALYSES.release, key, impl)
+        self._lend.atexit = False
+        self._impl = impl
         self._indptr, self._indices = H.indptr, H.indices
         self._probe = np.random.default_rng(0).standard_normal(H.shape[0])
         self._H = None
         self.n_analyses += 1
+
+    def _own_backend(self) -> Backend:
+        """The analysed (and factorized) backend, kept by the caller: it is never lent to the
+        pool, whose next borrower would overwrite its factor (e.g. a factor handed out for
+        selected inversion)."""
+        assert self._impl is not None and self._lend is not None, "analyze() first"
+        self._lend.detach()
+        return self._impl
 
     def matches(self, H: sp.spmatrix | sp.sparray) -> bool:
         """Whether ``H`` (CSC) has the pattern of the last :meth:`analyze`."""

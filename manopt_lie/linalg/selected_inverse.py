@@ -190,7 +190,7 @@ def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol:
         H.sum_duplicates()
     solver.analyze(H)
     solver.factorize(H)  # the probe solve: no factor of a singular H is handed out
-    return _FACTORS[solver.backend](solver._impl, H)
+    return _FACTORS[solver.backend](solver._own_backend(), H)
 
 
 class Supernodes:

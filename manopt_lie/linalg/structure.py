@@ -35,6 +35,12 @@ __all__ = ["BlockStructure"]
 IntArray = NDArray[np.intp]
 FloatArray = NDArray[np.float64]
 
+# (indptr, indices, per-factor gathers into the blocks, per-factor start in J.data)
+_JacobianPattern = tuple[NDArray[np.signedinteger], NDArray[np.signedinteger], list[IntArray], IntArray]
+
+CHUNK = 1 << 20
+"""Products per chunk of :meth:`BlockStructure.normal_equations` (8 MiB of float64)."""
+
 
 class BlockStructure:
     """The fixed sparsity of ``J``, ``H = JᵀWJ`` and ``g = JᵀWr`` for a factor graph.
@@ -85,28 +91,33 @@ class BlockStructure:
         checked = [check_factor(k, ids, r, self.dims) for k, (ids, r) in enumerate(factors)]
         block_ids = self._build_hessian_pattern([ids for ids, _ in checked])
         self._factors: list[FactorIndex] = []
-        jac_cols, hess, grad = [], [], []
+        # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
+        # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
+        self._hess_scatter: list[NDArray[np.signedinteger]] = []
+        self._grad_scatter: list[NDArray[np.signedinteger]] = []
         for (ids, slot_dims), (_, r), blocks in zip(checked, factors, block_ids, strict=True):
-            factor, cols, h, g = self._build_factor(ids, int(r), slot_dims, blocks)
+            factor, h, g = self._build_factor(ids, int(r), slot_dims, blocks)
             self._factors.append(factor)
-            jac_cols.append(cols)
-            hess.append(h)
-            grad.append(g)
-        # Position in H.data of each entry of every A_eᵀA_e, and coordinate of each column of A_e.
-        self._hess_scatter: IntArray = np.concatenate(hess)
-        self._grad_scatter: IntArray = np.concatenate(grad)
-        # Workspaces reused by normal_equations: fresh arrays this size cost
-        # more in page faults than the products written into them. One set per
-        # thread, made on first use, so that threads may share the structure.
+            self._hess_scatter.append(h)
+            self._grad_scatter.append(g)
+        # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
+        self._chunks = [max(1, CHUNK // f.width**2) for f in self._factors]
+        # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
+        # cost more in page faults than the products written into them. One set per thread,
+        # made on first use, so that threads may share the structure.
         self._local = threading.local()
-        self._weighted_size = max(f.m * f.residual_dim * f.width for f in self._factors)
-        self._build_jacobian_pattern(jac_cols)
+        self._jac: _JacobianPattern | None = None
 
     def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A)."""
         work: tuple[FloatArray, FloatArray, FloatArray] | None = getattr(self._local, "work", None)
         if work is None:
-            work = (np.empty(self._hess_scatter.size), np.empty(self._grad_scatter.size), np.empty(self._weighted_size))
+            sizes = [
+                (c * f.width**2, c * f.width, c * f.residual_dim * f.width)
+                for c, f in zip(self._chunks, self._factors, strict=True)
+            ]
+            work = (np.empty(max(h for h, _, _ in sizes)), np.empty(max(g for _, g, _ in sizes)),
+                    np.empty(max(w for _, _, w in sizes)))  # fmt: skip
             self._local.work = work
         return work
 
@@ -158,15 +169,16 @@ class BlockStructure:
 
     def _build_factor(
         self, ids: IntArray, r: int, slot_dims: tuple[int, ...], block: IntArray
-    ) -> tuple[FactorIndex, IntArray, IntArray, IntArray]:
-        """Index arrays of one factor type: its J gather, J's CSR columns, H and g scatters."""
+    ) -> tuple[FactorIndex, NDArray[np.signedinteger], NDArray[np.signedinteger]]:
+        """Index arrays of one factor type: its H and g scatters."""
         m, width = ids.shape[0], sum(slot_dims)
+        itype = index_dtype(max(self.nnz, self._n))
         starts = np.cumsum((0, *slot_dims))
         colmap = np.concatenate([self.offsets[ids[:, s], None] + np.arange(ds) for s, ds in enumerate(slot_dims)], 1)
         # A_eᵀA_e is symmetric, so its entry [p, q] may go to H[q, p]: consecutive
         # q then land on consecutive rows of one CSC column, which makes the
         # scatter far more cache-friendly than walking along a row.
-        hess = np.empty((m, width, width), dtype=np.intp)
+        hess = np.empty((m, width, width), dtype=itype)
         for t, dt in enumerate(slot_dims):
             b = ids[:, t]
             col_part = self._col_len[b, None] * np.arange(dt)  # (m, dt)
@@ -175,19 +187,29 @@ class BlockStructure:
                 hess[:, starts[t] : starts[t + 1], starts[s] : starts[s + 1]] = (
                     start[:, None, None] + col_part[:, :, None] + np.arange(ds)[None, None, :]
                 )
-        order = np.argsort(colmap, axis=1, kind="stable")
-        jac = (np.arange(m) * (r * width))[:, None, None] + (np.arange(r) * width)[:, None] + order[:, None, :]
-        cols = np.broadcast_to(np.take_along_axis(colmap, order, 1)[:, None, :], (m, r, width)).ravel()
-        return FactorIndex(ids, r, slot_dims, jac.ravel()), cols, hess.ravel(), colmap.ravel()
+        return FactorIndex(ids, r, slot_dims), hess.reshape(-1), colmap.astype(itype).reshape(-1)
 
-    def _build_jacobian_pattern(self, jac_cols: list[IntArray]) -> None:
-        """CSR pattern of ``J``: every row of edge ``e`` holds ``e``'s columns, sorted."""
+    def _jacobian_pattern(self) -> _JacobianPattern:
+        """CSR pattern of ``J`` — every row of edge ``e`` holds ``e``'s columns, sorted — and
+        the gather of each factor's blocks into its data; built at the first :meth:`jacobian`."""
+        if self._jac is not None:
+            return self._jac
+        cols, gathers = [], []
+        for f in self._factors:
+            m, r, width = f.m, f.residual_dim, f.width
+            colmap = np.concatenate(
+                [self.offsets[f.var_ids[:, s], None] + np.arange(ds) for s, ds in enumerate(f.slot_dims)], 1
+            )
+            order = np.argsort(colmap, axis=1, kind="stable")
+            jac = (np.arange(m) * (r * width))[:, None, None] + (np.arange(r) * width)[:, None] + order[:, None, :]
+            gathers.append(jac.ravel())
+            cols.append(np.broadcast_to(np.take_along_axis(colmap, order, 1)[:, None, :], (m, r, width)).ravel())
         row_len = np.concatenate([np.full(f.m * f.residual_dim, f.width) for f in self._factors])
         indptr = exclusive_cumsum(row_len)
         itype = index_dtype(max(int(indptr[-1]), self._n))
-        self._jac_indptr = indptr.astype(itype)
-        self._jac_indices = np.concatenate(jac_cols).astype(itype)
-        self._jac_start = exclusive_cumsum(np.array([f.m * f.residual_dim * f.width for f in self._factors]))
+        start = exclusive_cumsum(np.array([f.m * f.residual_dim * f.width for f in self._factors]))
+        self._jac = (indptr.astype(itype), np.concatenate(cols).astype(itype), gathers, start)
+        return self._jac
 
     # -- properties ----------------------------------------------------------
 
@@ -199,7 +221,7 @@ class BlockStructure:
     @property
     def n_rows(self) -> int:
         """Number of residual rows ``Σ_k m_k r_k`` (rows of ``J``)."""
-        return self._jac_indptr.size - 1
+        return sum(f.m * f.residual_dim for f in self._factors)
 
     @property
     def nnz(self) -> int:
@@ -250,11 +272,12 @@ class BlockStructure:
             Row ``ρ_k + e·r_k + i`` is row ``i`` of edge ``e`` of factor ``k``
             (``ρ_k`` = rows of the factors before ``k``).
         """
-        data = np.empty(self._jac_indices.size)
-        for a, f, start in zip(self._check_blocks(blocks), self._factors, self._jac_start, strict=False):
-            data[start : start + f.jac_gather.size] = a.ravel()[f.jac_gather]
+        indptr, indices, gathers, starts = self._jacobian_pattern()
+        data = np.empty(indices.size)
+        for a, gather, start in zip(self._check_blocks(blocks), gathers, starts, strict=False):
+            data[start : start + gather.size] = a.ravel()[gather]
         shape = (self.n_rows, self._n)
-        return sp.csr_matrix((data, self._jac_indices, self._jac_indptr), shape=shape, copy=False)
+        return sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
 
     def normal_equations(
         self,
@@ -301,23 +324,29 @@ class BlockStructure:
         if weights is not None and len(weights) != len(self._factors):
             raise ValueError(f"expected {len(self._factors)} weight arrays (one per factor), got {len(weights)}")
         hess_vals, grad_vals, weighted = self._workspaces()
-        h0 = g0 = 0
+        data, g = np.zeros(self.nnz), np.zeros(self._n)
         for k, (a, f) in enumerate(zip(blocks_, self._factors, strict=True)):
             r = np.asarray(residuals[k], dtype=np.float64)
             if r.shape != (f.m, f.residual_dim):
                 raise ShapeError(f"residuals[{k}]: expected shape {(f.m, f.residual_dim)}, got {r.shape}")
-            aw = a
+            w = None
             if weights is not None:
                 w = np.asarray(weights[k], dtype=np.float64)
                 if w.shape != (f.m,):
                     raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")
-                aw = np.multiply(a, w[:, None, None], out=weighted[: a.size].reshape(a.shape))
-            h1, g1 = h0 + f.m * f.width**2, g0 + f.m * f.width
-            np.matmul(aw.transpose(0, 2, 1), a, out=hess_vals[h0:h1].reshape(f.m, f.width, f.width))
-            np.matmul(r[:, None, :], aw, out=grad_vals[g0:g1].reshape(f.m, 1, f.width))
-            h0, g0 = h1, g1
-        data = np.asarray(np.bincount(self._hess_scatter, weights=hess_vals, minlength=self.nnz), dtype=np.float64)
-        g = np.asarray(np.bincount(self._grad_scatter, weights=grad_vals, minlength=self._n), dtype=np.float64)
+            hs, gs, width, step = self._hess_scatter[k], self._grad_scatter[k], f.width, self._chunks[k]
+            # Chunks of edges: the products of one chunk stay in cache and in a small workspace,
+            # and np.add.at sums them into H (int32 scatters on its fast path).
+            for e0 in range(0, f.m, step):
+                e1 = min(e0 + step, f.m)
+                c, ac = e1 - e0, a[e0:e1]
+                aw = ac
+                if w is not None:
+                    aw = np.multiply(ac, w[e0:e1, None, None], out=weighted[: ac.size].reshape(ac.shape))
+                prod = np.matmul(aw.transpose(0, 2, 1), ac, out=hess_vals[: c * width * width].reshape(c, width, width))
+                np.add.at(data, hs[e0 * width * width : e1 * width * width], prod.reshape(-1))
+                gv = np.matmul(r[e0:e1, None, :], aw, out=grad_vals[: c * width].reshape(c, 1, width))
+                np.add.at(g, gs[e0 * width : e1 * width], gv.reshape(-1))
         return self._csc(data), g
 
     def _check_pattern(self, H: sp.csc_matrix, what: str) -> None:

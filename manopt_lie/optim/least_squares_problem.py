@@ -62,6 +62,12 @@ class Factor:
     blocks : tuple of str, optional
         On :class:`~manopt_lie.manifolds.Blocks`: the block of each slot, e.g.
         ``("poses", "landmarks")``; a single name applies to every slot. Ignored on ``Power``.
+    fresh_jacobians : bool
+        The residual returns new Jacobian arrays at every call, which the problem may
+        overwrite (zeroing the columns of fixed variables in place). Jacobians that are
+        the consecutive slices ``J[:, :, o_s:o_s + d_s]`` of one ``(m, k, Σd)`` array, in
+        slot order, are then read as that array without concatenating them (the
+        library's fused pose factors return them so).
     """
 
     variables: NDArray[np.int64]
@@ -69,6 +75,7 @@ class Factor:
     loss: RobustLoss | str | None = field(default_factory=Trivial)
     name: str = "factor"
     blocks: tuple[str, ...] | str | None = None
+    fresh_jacobians: bool = False
 
     def __post_init__(self) -> None:
         v = np.asarray(self.variables)
@@ -105,6 +112,23 @@ class Linearization:
     def is_finite(self) -> bool:
         """Whether the cost, the gradient and ``H`` are all finite."""
         return bool(math.isfinite(self.cost) and np.isfinite(self.grad).all() and np.isfinite(self.hessian.data).all())
+
+
+def _side_by_side(jacobians: Sequence[Any]) -> FloatArray | None:
+    """The array ``J`` whose consecutive last-axis slices, in order, are ``jacobians``, or ``None``."""
+    first = jacobians[0]
+    base = getattr(first, "base", None)
+    if not isinstance(base, np.ndarray) or base.ndim != 3 or base.dtype != np.float64:
+        return None
+    if base.shape[:2] != first.shape[:2] or base.shape[2] != sum(j.shape[-1] for j in jacobians):
+        return None
+    start, step = base.__array_interface__["data"][0], base.strides[2]
+    offset = 0
+    for j in jacobians:
+        if j.base is not base or j.strides != base.strides or j.__array_interface__["data"][0] != start + offset * step:
+            return None
+        offset += j.shape[-1]
+    return base
 
 
 class _Layout:
@@ -309,9 +333,7 @@ class LeastSquaresProblem(Problem):
                 )
             s = np.einsum("...i,...i->...", r, r)
             cost += 0.5 * float(np.sum(f.robust_loss.rho(s)))
-            # Fixed variables: zero columns, so their update is exactly zero.
-            keep = ~self._fixed[self._variables[k]]
-            blocks.append(np.concatenate([j * keep[:, s, None, None] for s, j in enumerate(jacobians)], axis=-1))
+            blocks.append(self._jacobian_block(k, jacobians))
             residuals.append(r)
             weights.append(f.robust_loss.weight(s))
         structure = self._structure or self._build_structure(residuals)
@@ -321,6 +343,22 @@ class LeastSquaresProblem(Problem):
         lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
         self._local.linearization = (key, lin)
         return lin
+
+    def _jacobian_block(self, k: int, jacobians: Sequence[FloatArray]) -> FloatArray:
+        """Factor ``k``'s Jacobians side by side, ``(m, r, Σd)``, with zero columns for the
+        fixed variables (so their update is exactly zero): the factor's own array when its
+        fresh Jacobians are slices of one, else a concatenation."""
+        f, fixed = self._factors[k], self._fixed[self._variables[k]]
+        block = _side_by_side(jacobians) if f.fresh_jacobians else None
+        if block is None:
+            block = np.concatenate(jacobians, axis=-1)
+        if fixed.any():
+            edges, slots = np.nonzero(fixed)
+            widths = [np.shape(j)[-1] for j in jacobians]
+            starts = np.cumsum([0, *widths])
+            for s in np.unique(slots):  # over the slots, not the edges
+                block[edges[slots == s], :, starts[s] : starts[s + 1]] = 0.0
+        return block
 
     def _build_structure(self, residuals: list[FloatArray]) -> BlockStructure:
         """The sparsity pattern, built once (under a lock: every thread must share one

@@ -118,6 +118,8 @@ class _GaussNewton(_PerPoint):
         self._solver = CholeskySolver()
 
     def _build(self, G: sp.csc_matrix) -> None:
+        if self._solver.n_analyses == 0 and self._problem.structure is not None:
+            self._solver = self._solver.bind(self._problem.structure)  # its pattern needs no symmetry check
         if not self._solver.matches(G):
             self._solver.analyze(G)
         self._solver.factorize(G)

@@ -1,0 +1,94 @@
+"""Symbolic analyses kept across solvers: analysed backends pooled by the pattern they analysed.
+
+The ordering and symbolic factorization of ``H`` depend on its pattern only, and a run
+of Gauss-Newton or Levenberg-Marquardt builds a fresh :class:`CholeskySolver` (``bind``)
+for every solve. Problems of the same pattern — the same graph solved again, from
+another start, with another cost of the same blocks, by a benchmark's repeats — would
+redo the analysis each time. A backend object holds its numeric factor as well, which
+CHOLMOD (through CVXOPT) cannot copy, so the pool lends each analysed backend to one
+solver at a time: a solver takes an idle backend of its pattern, or analyses anew, and
+gives it back when it is garbage-collected or analyses another pattern. Concurrent
+solvers of one pattern (threads) thus each get their own.
+
+Patterns are keyed by ``(backend, n, nnz, index dtypes, BLAKE2b(indptr, indices))``. The pool keeps
+at most :data:`MAX_IDLE` idle backends and :data:`MAX_IDLE_NNZ` stored entries of
+``H`` in all (least recently returned dropped first): a big factor is not kept alive
+for a pattern that may never come back.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ANALYSES", "AnalysisPool", "pattern_key"]
+
+MAX_IDLE = 8
+MAX_IDLE_NNZ = 4_000_000
+
+Key = tuple[str, int, int, str, bytes]
+
+
+def pattern_key(backend: str, indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger]) -> Key:
+    """The pool's key of a CSC pattern: its sizes, index dtype and a 128-bit BLAKE2b digest of
+    its arrays' bytes (no copy of contiguous arrays)."""
+    digest = hashlib.blake2b(digest_size=16)
+    for a in (indptr, indices):
+        digest.update(memoryview(np.ascontiguousarray(a)).cast("B"))
+    dtypes = f"{indptr.dtype.str}{indices.dtype.str}"
+    return backend, int(indptr.size - 1), int(indices.size), dtypes, digest.digest()
+
+
+class AnalysisPool:
+    """Idle analysed backends by pattern key; thread-safe.
+
+    Attributes
+    ----------
+    hits, misses : int
+        Analyses taken from the pool, and analyses the pool could not provide.
+    """
+
+    def __init__(self, max_idle: int = MAX_IDLE, max_idle_nnz: int = MAX_IDLE_NNZ) -> None:
+        self.max_idle, self.max_idle_nnz = max_idle, max_idle_nnz
+        self._idle: OrderedDict[int, tuple[Key, Any]] = OrderedDict()
+        self._lock = threading.Lock()
+        self._ticket = 0
+        self.hits = self.misses = 0
+
+    def acquire(self, key: Key) -> Any | None:
+        """An idle backend of ``key`` (the most recently returned), now lent out, or ``None``."""
+        with self._lock:
+            for ticket in reversed(self._idle):
+                if self._idle[ticket][0] == key:
+                    self.hits += 1
+                    return self._idle.pop(ticket)[1]
+            self.misses += 1
+            return None
+
+    def release(self, key: Key, backend: Any) -> None:
+        """Take ``backend`` (analysed for ``key``) back, dropping the oldest idle ones past the bounds."""
+        if key[2] > self.max_idle_nnz:
+            return
+        with self._lock:
+            self._ticket += 1
+            self._idle[self._ticket] = (key, backend)
+            while len(self._idle) > self.max_idle or sum(k[2] for k, _ in self._idle.values()) > self.max_idle_nnz:
+                self._idle.popitem(last=False)
+
+    def clear(self) -> None:
+        """Drop every idle backend (and reset the counters)."""
+        with self._lock:
+            self._idle.clear()
+            self.hits = self.misses = 0
+
+    def __len__(self) -> int:
+        return len(self._idle)
+
+
+ANALYSES = AnalysisPool()
+"""The process's pool, used by every :class:`~manopt_lie.linalg.CholeskySolver`."""
