@@ -24,7 +24,9 @@ def blockwise(kernel: Callable[..., FloatArray], args: tuple[FloatArray, ...], t
     """``kernel(*args)``, computed block by block along the first broadcast batch axis.
 
     ``trailing[i]`` is the number of non-batch (trailing) axes of ``args[i]``. The
-    kernel must act independently on each batch element.
+    kernel must act independently on each batch element. A kernel with the attribute
+    ``into = True`` takes ``out=`` (a C-contiguous block of the result) and fills it, which
+    saves a copy of every block.
     """
     for a in args:
         if a.size > _DIRECT:
@@ -39,7 +41,11 @@ def blockwise(kernel: Callable[..., FloatArray], args: tuple[FloatArray, ...], t
     first = kernel(*(a[:rows] for a in args))
     out = np.empty(batch + first.shape[len(batch) :])
     out[:rows] = first
+    into = getattr(kernel, "into", False)  # a kernel that can write its result into a given array
     for start in range(rows, batch[0], rows):
         stop = start + rows
-        out[start:stop] = kernel(*(a[start:stop] for a in args))
+        if into:
+            kernel(*(a[start:stop] for a in args), out=out[start:stop])
+        else:
+            out[start:stop] = kernel(*(a[start:stop] for a in args))
     return out

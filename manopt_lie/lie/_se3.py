@@ -43,10 +43,7 @@ def _q_sum(rho: FloatArray, v: FloatArray, k: tuple[FloatArray, ...]) -> FloatAr
     """``k₀ρ^ + k₁v^ + k₂(vρᵀ + ρvᵀ) + k₃(v wᵀ − w vᵀ) − k₄ vvᵀ + k₅ I`` with ``w = v × ρ``
     (:func:`_formulas.q_entries`, entry by entry)."""
     r = (rho[..., 0], rho[..., 1], rho[..., 2])
-    entries = _formulas.q_entries(r, (v[..., 0], v[..., 1], v[..., 2]), k)
-    if rho.shape != v.shape:
-        entries = np.broadcast_arrays(*entries)
-    return np.stack(entries, axis=-1).reshape(entries[0].shape + (3, 3))
+    return _formulas.stack(_formulas.q_entries(r, (v[..., 0], v[..., 1], v[..., 2]), k), 3, 3)
 
 
 def _q_matrix_huge(rho: FloatArray, theta: FloatArray) -> FloatArray:

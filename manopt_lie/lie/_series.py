@@ -184,12 +184,17 @@ def evaluate(coef: Coefficient, t: Any, theta: Any = None, backend: Backend = NU
 
 
 def patched(coef: Coefficient, t: FloatArray, theta: FloatArray) -> FloatArray:
-    """:func:`evaluate` on NumPy arrays, faster: the closed form on every angle, the series only on the
-    angles with ``t < threshold²`` (those see ``θ = 1`` in the closed form), and only if there are any."""
+    """:func:`evaluate` on NumPy arrays, faster: the closed form on every angle, the series only where
+    ``t < threshold²`` (those angles see ``θ = 1`` in the closed form) — if there are any, and on that
+    subset alone if it is a small part (gathering and scattering cost more than Horner's rule)."""
     small = t < coef.threshold2
-    if not small.any():
+    count = np.count_nonzero(small)
+    if not count:
         return coef.closed(NUMPY, theta)
-    out = np.asarray(coef.closed(NUMPY, np.where(small, 1.0, theta)))
+    closed = coef.closed(NUMPY, np.where(small, 1.0, theta))
+    if 8 * count > small.size:
+        return np.where(small, horner(t, coef.series), closed)
+    out = np.asarray(closed)
     out[small] = horner(t[small], coef.series)
     return out
 

@@ -26,7 +26,7 @@ def sq(w: FloatArray) -> FloatArray:
 
 def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """``a × b`` by components (``np.cross`` costs ~50 µs on small arrays), broadcasting batch axes."""
-    return np.stack(_formulas.cross3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2]), axis=-1)
+    return _formulas.stack(list(_formulas.cross3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2])), 3)
 
 
 @_one.fast(_one.hat3, 1)
@@ -132,43 +132,41 @@ def _jr_inv_huge(w: FloatArray) -> FloatArray:
     return i_plus(h, 1.0 - h * c / s, u, sq(u))
 
 
-def rodrigues(r: FloatArray, c: FloatArray, w: FloatArray, t: FloatArray, out: FloatArray) -> None:
-    """``Exp(w)`` into ``out`` ``(n, 9)`` from ``r = sin(θ/2)/θ``, ``c = cos(θ/2)`` (overwritten), ``w`` ``(n, 3)``,
-    ``t = θ²``: ``cos θ I + (1 − cos θ)/θ² w wᵀ + sin θ/θ [w]×`` with ``sin θ/θ = 2rc``,
-    ``(1 − cos θ)/θ² = 2r²``. Products and sums are written straight into the columns of ``out``."""
+def _rodrigues_into(r: FloatArray, c: FloatArray, w: FloatArray, t: FloatArray, out: FloatArray) -> None:
+    """:func:`_formulas.rodrigues` into ``out`` ``(n, 9)``, the same operations in the same order,
+    with fewer temporaries (``r``, ``c``, ``t`` are overwritten) and the entries written in place."""
     x, y, z = w[:, 0], w[:, 1], w[:, 2]
     r2 = r + r
     a = np.multiply(r2, c, out=c)
-    b = np.multiply(r2, r, out=r2)
-    cd = b * t
+    b = np.multiply(r2, r, out=r)
+    cd = np.multiply(b, t, out=t)
     np.subtract(1.0, cd, out=cd)
-    bx, by, bz = b * x, b * y, b * z
-    ax, ay, az = a * x, a * y, a * z
-    bxy, bxz, byz = bx * y, bx * z, by * z
-    for k, (p, q) in enumerate(((bx, x), (by, y), (bz, z))):
-        np.multiply(p, q, out=out[:, 4 * k])
-        out[:, 4 * k] += cd
+    bx, by, bz = np.multiply(b, x, out=r2), b * y, b * z
+    ax, ay, az = a * x, a * y, np.multiply(a, z, out=a)
+    for k, (p, q) in enumerate(((bx, x), (by, y), (bz, z))):  # strided writes into ``out`` only
+        np.add(np.multiply(p, q, out=b), cd, out=out[:, 4 * k])
+    bxy = np.multiply(bx, y, out=cd)
     np.subtract(bxy, az, out=out[:, 1])
-    np.add(bxz, ay, out=out[:, 2])
     np.add(bxy, az, out=out[:, 3])
-    np.subtract(byz, ax, out=out[:, 5])
+    bxz = np.multiply(bx, z, out=bx)
+    np.add(bxz, ay, out=out[:, 2])
     np.subtract(bxz, ay, out=out[:, 6])
+    byz = np.multiply(by, z, out=by)
+    np.subtract(byz, ax, out=out[:, 5])
     np.add(byz, ax, out=out[:, 7])
 
 
-@_one.fast(_one.so3_exp, 1)
-@scale_safe(_exp_huge)
-def exp(w: FloatArray) -> FloatArray:
-    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (see :func:`rodrigues`).
+def _sq_rows(w: FloatArray) -> FloatArray:
+    """:func:`sq` of rows ``(n, 3)``, squaring in contiguous temporaries."""
+    t = np.square(w[:, 0])
+    tmp = np.square(w[:, 1])
+    t += tmp
+    t += np.square(w[:, 2], out=tmp)
+    return t
 
-    Both coefficients come from one ``tan`` of ``θ/4`` (vectorized in NumPy, unlike ``sin``/``cos``),
-    without cancellation: with ``τ = tan(θ/4)`` and ``k = 2/(1 + τ²) = 1 + cos(θ/2)``,
-    ``r = sin(θ/2)/θ = (τ/θ)·k`` and ``cos(θ/2) = k − 1``. Below ``θ = 1e-4`` the series
-    :data:`_series.SINC_HALF` and :data:`_series.COS_HALF` replace them (only on those rows, if
-    any). Angles beyond :data:`HUGE` go through the quaternion of :func:`polar` (:func:`scale_safe`).
-    """
-    flat = w.reshape(-1, 3)
-    t = sq(flat)
+
+def _exp_rows(w: FloatArray, t: FloatArray, out: FloatArray) -> None:
+    """``Exp`` of rotation vectors ``w`` ``(n, 3)`` with ``t = |w|² < HUGE²`` (overwritten) into ``out`` ``(n, 9)``."""
     theta = np.sqrt(t)
     small = t < _series.SINC_HALF.threshold2
     few = small.any()
@@ -186,9 +184,36 @@ def exp(w: FloatArray) -> FloatArray:
         ts = t[small]
         r[small] = _series.horner(ts, _series.SINC_HALF.series)
         c[small] = _series.horner(ts, _series.COS_HALF.series)
-    out = np.empty((flat.shape[0], 9))
-    rodrigues(r, c, flat, t, out)
-    return out.reshape(w.shape[:-1] + (3, 3))
+    _rodrigues_into(r, c, w, t, out)
+
+
+@_one.fast(_one.so3_exp, 1)
+def exp(w: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """Rodrigues: ``Exp(θu) = cos θ I + (1 − cos θ) u uᵀ + sin θ [u]×`` (:func:`_formulas.rodrigues`).
+
+    Both coefficients come from one ``tan`` of ``θ/4`` (vectorized in NumPy, unlike ``sin``/``cos``),
+    without cancellation: with ``τ = tan(θ/4)`` and ``k = 2/(1 + τ²) = 1 + cos(θ/2)``,
+    ``r = sin(θ/2)/θ = (τ/θ)·k`` and ``cos(θ/2) = k − 1``. Below ``θ = 1e-4`` the series
+    :data:`_series.SINC_HALF` and :data:`_series.COS_HALF` replace them (only on those rows, if
+    any). Angles beyond :data:`HUGE` go through the quaternion of :func:`polar`, the other rows
+    unchanged (as :func:`scale_safe` does). ``out``: a C-contiguous ``(..., 3, 3)`` array to fill
+    (``_blocks.blockwise`` passes its output's blocks).
+    """
+    flat = w.reshape(-1, 3)
+    with np.errstate(over="ignore"):
+        t = _sq_rows(flat)
+    o = np.empty((flat.shape[0], 9)) if out is None else out.reshape(-1, 9)
+    if (t < _series.HUGE2).all():
+        _exp_rows(flat, t, o)
+    else:  # inf (overflow) included
+        big = ~(t < _series.HUGE2)
+        t[big] = 0.0
+        _exp_rows(np.where(big[:, None], 0.0, flat), t, o)
+        o[big] = _exp_huge(flat[big]).reshape(-1, 9)
+    return o.reshape(w.shape[:-1] + (3, 3)) if out is None else out
+
+
+exp.into = True  # type: ignore[attr-defined]
 
 
 def to_quaternion(r: FloatArray) -> FloatArray:
@@ -286,8 +311,7 @@ def jl_inv_apply(w: FloatArray, v: FloatArray) -> FloatArray:
 
 def i_plus(a: FloatArray | float, b: FloatArray, w: FloatArray, t: FloatArray) -> FloatArray:
     """``I + a [w]× + b [w]×²`` with ``[w]×² = w wᵀ − t I``, ``t = |w|²``, entry by entry."""
-    entries = _formulas.i_plus(a, b, w[..., 0], w[..., 1], w[..., 2], t)
-    return np.stack(entries, axis=-1).reshape(w.shape[:-1] + (3, 3))
+    return _formulas.stack(_formulas.i_plus(a, b, w[..., 0], w[..., 1], w[..., 2], t), 3, 3)
 
 
 @_one.fast(_one.so3_jr, 1)
