@@ -313,8 +313,9 @@ def test_demo(tmp_path: Path) -> None:
     out = tmp_path / "out"
     document = json.loads((out / "results.json").read_text())
     runs = document["runs"]
-    assert {r["optimizer"] for r in runs} == {"gd", "cg", "gn", "lm", "tr", "staircase"} and len(runs) == 17
-    assert all(r["converged"] for r in runs if r["optimizer"] in ("gn", "lm", "tr", "staircase"))
+    optimizers = {"gd", "cg", "lbfgs", "gn", "lm", "dogleg", "tr", "staircase"}  # every registered solver
+    assert {r["optimizer"] for r in runs} == optimizers and len(runs) == 7 * 3 + 2  # staircase: chordal only
+    assert all(r["converged"] for r in runs if r["optimizer"] in ("gn", "lm", "dogleg", "tr", "staircase"))
     certified = [r for r in runs if r["optimizer"] == "staircase"]  # on the two chordal problems
     assert [r["status"] for r in certified] == ["certified", "certified"]
     assert (out / "report.md").read_text().count("![") >= 5

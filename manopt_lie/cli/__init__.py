@@ -44,7 +44,11 @@ def build_parser() -> _common.Parser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit code (see the module doc)."""
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except KeyboardInterrupt:
+        print("manopt-lie: interrupted", file=sys.stderr)
+        return _common.EXIT_INTERRUPTED
     try:
         return int(args.run(args))
     except KeyboardInterrupt:

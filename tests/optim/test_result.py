@@ -38,7 +38,7 @@ def rayleigh():
 CODES = {
     "GRADIENT_NORM": 1, "COST_DECREASE": 2, "STEP_SIZE": 3, "MAX_ITERATIONS": 4, "MAX_TIME": 5,
     "LINE_SEARCH_FAILED": 6, "LINEAR_SOLVER_FAILED": 7, "CALLBACK": 8, "NO_PROGRESS": 9, "NON_FINITE": 10,
-    "INTERRUPTED": 11,
+    "INTERRUPTED": 11, "CERTIFIED": 12,
 }  # fmt: skip
 
 
@@ -46,7 +46,8 @@ def test_status_codes_are_stable_integers():
     """Files and other programs keep the codes: they never change, none is 0 (every status is truthy)."""
     assert {s.name: int(s) for s in Status} == CODES
     assert Status.GRADIENT_NORM == 1 and Status(4) is Status.MAX_ITERATIONS and all(Status)
-    assert [s for s in Status if s.converged] == [Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE]
+    successes = [Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE, Status.CERTIFIED]
+    assert [s for s in Status if s.converged] == successes
     assert json.dumps({"status": Status.CALLBACK}) == '{"status": 8}'
     assert str(Status.STEP_SIZE) == "Status.STEP_SIZE" and f"{Status.STEP_SIZE}" == "Status.STEP_SIZE"
     assert f"{Status.STEP_SIZE:d}" == "3" and Status.NO_PROGRESS.name.lower() == "no_progress"

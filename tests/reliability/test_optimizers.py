@@ -525,7 +525,7 @@ def test_8_the_linearization_memo_sees_a_point_mutated_in_place():
 
 
 def test_every_status_says_correctly_whether_it_converged():
-    converged = {Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE}
+    converged = {Status.GRADIENT_NORM, Status.COST_DECREASE, Status.STEP_SIZE, Status.CERTIFIED}
     for status in Status:
         assert status.converged is (status in converged), status
 
