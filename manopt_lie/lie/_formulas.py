@@ -104,3 +104,31 @@ def q_entries(r: tuple[C, C, C], v: tuple[C, C, C], k: tuple[C, C, C, C, C, C]) 
         k0 * r0 + k1 * v0 + k2 * s12 + k3 * -a12 - k4 * p12,
         k2 * (v2 * r2 + v2 * r2) - k4 * (v2 * v2) + k5,
     ]
+
+
+def mat3(a: list[C], b: list[C]) -> list[C]:
+    """The nine entries of the product of 3×3 matrices given by their row-major entries, each summed
+    left to right (no fused multiply-adds: the same on floats and arrays)."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return [
+        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
+    ]  # fmt: skip
+
+
+def neg(a: list[C]) -> list[C]:
+    return [-e for e in a]
+
+
+def se3_jacobian(
+    rho: tuple[C, C, C], theta: tuple[C, C, C], t: C, ab: tuple[C, C], c: tuple[C, C, C], inverse: bool
+) -> tuple[list[C], list[C]]:
+    """The diagonal and corner blocks (entries) of SE(3)'s ``Jr = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` or of
+    ``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]``, from ``t = |θ|²``, the coefficients ``ab`` of
+    :func:`i_plus` for ``Jr(θ)`` or ``Jr(θ)⁻¹`` and ``c = (c₁, c₂, c₃)`` of ``Q`` (``_se3.q_matrix``)."""
+    d = dot3(*theta, *rho)  # (−θ)·(−ρ), exactly
+    j = i_plus(ab[0], ab[1], *theta, t)
+    q = q_entries((-rho[0], -rho[1], -rho[2]), (-theta[0], -theta[1], -theta[2]), q_coefficients(*c, t, d))
+    return (j, neg(mat3(mat3(j, q), j))) if inverse else (j, q)

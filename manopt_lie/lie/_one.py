@@ -250,28 +250,39 @@ def _neg(v: Floats) -> Floats:
     return [-x for x in v]
 
 
-def se3_jr(tau: Floats) -> np.ndarray | None:
+def _se3_jacobian(tau: Floats, inverse: bool) -> np.ndarray | None:
+    """``_se3._jacobian``: the blocks by ``_formulas.se3_jacobian``, then ``[[D, C], [0, D]]``."""
     rho, theta = tau[:3], tau[3:]
-    j = _jr3(theta, False)
-    q = _q(_neg(rho), _neg(theta))
-    if j is None or q is None:
+    t = _sq(theta)
+    if not t < HUGE2:
         return None
-    z = [0.0, 0.0, 0.0]
-    rows = [[*j[3 * i : 3 * i + 3], *q[3 * i : 3 * i + 3]] for i in range(3)]
-    rows += [[*z, *j[3 * i : 3 * i + 3]] for i in range(3)]
-    return np.array(rows)
+    angle = math.sqrt(t)
+    if inverse:
+        ab, c1 = (0.5, value(JINV_COEF, t, angle)), value(SINC3, t, angle)
+    else:
+        ab = (-value(COSC, t, angle), value(SINC3, t, angle))
+        c1 = ab[1]
+    c = (c1, value(Q_COEF2, t, angle), value(Q_COEF3, t, angle))
+    d, q = _formulas.se3_jacobian(tuple(rho), tuple(theta), t, ab, c, inverse)  # type: ignore[arg-type]
+    return _array(
+        [
+            d[0], d[1], d[2], q[0], q[1], q[2],
+            d[3], d[4], d[5], q[3], q[4], q[5],
+            d[6], d[7], d[8], q[6], q[7], q[8],
+            0.0, 0.0, 0.0, d[0], d[1], d[2],
+            0.0, 0.0, 0.0, d[3], d[4], d[5],
+            0.0, 0.0, 0.0, d[6], d[7], d[8],
+        ],
+        6, 6,
+    )  # fmt: skip
+
+
+def se3_jr(tau: Floats) -> np.ndarray | None:
+    return _se3_jacobian(tau, False)
 
 
 def se3_jr_inv(tau: Floats) -> np.ndarray | None:
-    rho, theta = tau[:3], tau[3:]
-    j, q = _jr3(theta, True), _q(_neg(rho), _neg(theta))
-    if j is None or q is None:
-        return None
-    ji = _array(j, 3, 3)
-    out = np.zeros((6, 6))
-    out[:3, :3] = out[3:, 3:] = ji
-    out[:3, 3:] = -ji @ _array(q, 3, 3) @ ji
-    return out
+    return _se3_jacobian(tau, True)
 
 
 # ---- homogeneous matrices and rotations of the plane and space --------------------------------

@@ -99,19 +99,40 @@ def _block_upper(diagonal: FloatArray, corner: FloatArray) -> FloatArray:
     return out
 
 
-@_one.fast(_one.se3_jr, 1)
-def jr(tau: FloatArray) -> FloatArray:
-    """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179)."""
+def _jr_blocks(tau: FloatArray, inverse: bool = False) -> FloatArray:
+    """:func:`jr` (:func:`jr_inv`) through the scale-safe kernels ``_so3.jr`` and :func:`q_matrix`: huge angles."""
     rho, theta = tau[..., :3], tau[..., 3:]
-    return _block_upper(_so3.jr(theta), q_matrix(-rho, -theta))
+    if not inverse:
+        return _block_upper(_so3.jr(theta), q_matrix(-rho, -theta))
+    ji = _so3.jr_inv(theta)
+    return _block_upper(ji, -ji @ q_matrix(-rho, -theta) @ ji)
+
+
+def _jacobian(tau: FloatArray, inverse: bool) -> FloatArray:
+    """:func:`_formulas.se3_jacobian` on the components of ``tau``."""
+    rho = (tau[..., 0], tau[..., 1], tau[..., 2])
+    theta = (tau[..., 3], tau[..., 4], tau[..., 5])
+    t = _formulas.sq3(*theta)
+    ab = _so3.jr_coefficients(t, inverse)
+    angle = np.sqrt(t)
+    c1 = ab[1] if not inverse else _series.sinc3(angle, t)  # (θ − sin θ)/θ³, as in Jr(θ)
+    c = (c1, _series.q_coef2(angle, t), _series.q_coef3(angle, t))
+    diagonal, corner = _formulas.se3_jacobian(rho, theta, t, ab, c, inverse)
+    return _block_upper(_formulas.stack(diagonal, 3, 3), _formulas.stack(corner, 3, 3))
+
+
+@_one.fast(_one.se3_jr, 1)
+@_so3.scale_safe(_jr_blocks, part=slice(3, 6))
+def jr(tau: FloatArray) -> FloatArray:
+    """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179), entry by entry."""
+    return _jacobian(tau, False)
 
 
 @_one.fast(_one.se3_jr_inv, 1)
+@_so3.scale_safe(lambda tau: _jr_blocks(tau, True), part=slice(3, 6))
 def jr_inv(tau: FloatArray) -> FloatArray:
-    """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``."""
-    rho, theta = tau[..., :3], tau[..., 3:]
-    ji = _so3.jr_inv(theta)
-    return _block_upper(ji, -ji @ q_matrix(-rho, -theta) @ ji)
+    """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``, entry by entry."""
+    return _jacobian(tau, True)
 
 
 def adjoint(m: FloatArray) -> FloatArray:

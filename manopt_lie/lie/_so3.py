@@ -71,10 +71,10 @@ def polar(w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray
     return v / n[..., None], h, np.sin(h), np.cos(h)
 
 
-def scale_safe(huge: Callable[..., FloatArray], angle: int = 0) -> Callable[[Any], Any]:
+def scale_safe(huge: Callable[..., FloatArray], angle: int = 0, part: slice = slice(None)) -> Callable[[Any], Any]:
     """Decorate a kernel of rotation vectors so that rows with ``|θ| ≥ HUGE`` go to ``huge``.
 
-    ``args[angle]`` is the rotation vector; all arguments are vectors ``(..., 3)``. The
+    ``args[angle][..., part]`` is the rotation vector; all arguments are vectors ``(..., k)``. The
     common path (no huge row) is the kernel itself, unchanged; otherwise the huge rows are
     zeroed for the kernel (no overflow, no warning) and recomputed by ``huge`` on their own.
     """
@@ -83,7 +83,7 @@ def scale_safe(huge: Callable[..., FloatArray], angle: int = 0) -> Callable[[Any
         @wraps(kernel)
         def f(*args: FloatArray) -> FloatArray:
             with np.errstate(over="ignore"):
-                big = ~(sq(args[angle]) < _series.HUGE2)  # inf (overflow) included
+                big = ~(sq(args[angle][..., part]) < _series.HUGE2)  # inf (overflow) included
             if not big.any():
                 return kernel(*args)
             batch = np.broadcast_shapes(*(a.shape[:-1] for a in args))
@@ -314,13 +314,21 @@ def i_plus(a: FloatArray | float, b: FloatArray, w: FloatArray, t: FloatArray) -
     return _formulas.stack(_formulas.i_plus(a, b, w[..., 0], w[..., 1], w[..., 2], t), 3, 3)
 
 
+def jr_coefficients(t: FloatArray, inverse: bool) -> tuple[FloatArray | float, FloatArray]:
+    """``(a, b)`` of :func:`i_plus` for ``Jr(θ)`` (``−(1 − cos θ)/θ²``, ``(θ − sin θ)/θ³``) or for
+    ``Jr(θ)⁻¹`` (``½``, :func:`_series.jinv_coef`), from ``t = |θ|²``."""
+    theta = np.sqrt(t)
+    if inverse:
+        return 0.5, _series.jinv_coef(theta, t)
+    return -_series.cosc(theta, t), _series.sinc3(theta, t)
+
+
 @_one.fast(_one.so3_jr, 1)
 @scale_safe(_jr_huge)
 def jr(w: FloatArray) -> FloatArray:
     """``Jr(θ) = I − (1 − cos θ)/θ² [θ]× + (θ − sin θ)/θ³ [θ]×²`` (eq. 143)."""
     t = sq(w)
-    theta = np.sqrt(t)
-    return i_plus(-_series.cosc(theta, t), _series.sinc3(theta, t), w, t)
+    return i_plus(*jr_coefficients(t, False), w, t)
 
 
 @_one.fast(_one.so3_jr_inv, 1)
@@ -328,7 +336,7 @@ def jr(w: FloatArray) -> FloatArray:
 def jr_inv(w: FloatArray) -> FloatArray:
     """``Jr(θ)⁻¹ = I + ½[θ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [θ]×²`` (eq. 144)."""
     t = sq(w)
-    return i_plus(0.5, _series.jinv_coef(np.sqrt(t), t), w, t)
+    return i_plus(*jr_coefficients(t, True), w, t)
 
 
 def act_jac_rotation(r: FloatArray, p: FloatArray) -> FloatArray:
