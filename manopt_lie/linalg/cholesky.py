@@ -118,6 +118,7 @@ class CholeskySolver:
         self._H: sp.csc_matrix | None = None
         self._trusted: tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]] | None = None
         self._lend: weakref.finalize | None = None
+        self._structure: BlockStructure | None = None
 
     @staticmethod
     def available_backends() -> tuple[str, ...]:
@@ -132,6 +133,7 @@ class CholeskySolver:
         analysed at the first call (or taken from the pool of analyses)."""
         solver = CholeskySolver(self.backend, rtol=self.rtol)
         solver._trusted = (structure.indptr, structure.indices)
+        solver._structure = structure
         return solver
 
     @property
@@ -167,7 +169,11 @@ class CholeskySolver:
                 pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
                 if (pattern != pattern.T).nnz:
                     raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
-            impl = BACKENDS[self.backend](H.indptr, H.indices)
+            if trusted and self.backend == "cholmod":
+                assert self._structure is not None
+                impl = BACKENDS["cholmod"](H.indptr, H.indices, self._structure.fill_reducing_ordering())
+            else:
+                impl = BACKENDS[self.backend](H.indptr, H.indices)
         if self._lend is not None:
             self._lend()  # the previous pattern's backend goes back to the pool
         self._lend = weakref.finalize(self, ANALYSES.release, key, impl)

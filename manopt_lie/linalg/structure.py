@@ -150,18 +150,24 @@ class BlockStructure:
 
         n, nnz = int(self.offsets[-1]), int(base[-1])
         itype = index_dtype(max(nnz, n))
+        # The variables' graph (block CSC, both triangles): what a fill-reducing ordering reads.
+        self._block_pattern = (exclusive_cumsum(np.bincount(bcol, minlength=nv)).astype(itype), brow.astype(itype))
+        self._ordering: IntArray | None = None
         var_of_col = np.repeat(np.arange(nv), dims)
         j_local = np.arange(n) - self.offsets[var_of_col]
         indptr = np.append(base[var_of_col] + j_local * col_len[var_of_col], nnz)
         # Each column of variable b lists the rows of b's blocks in order: the
-        # "row stream" segment of b, repeated d_b times.
+        # "row stream" segment of b, repeated d_b times. The nnz-sized arrays are built in
+        # the index dtype, one at a time (their memory is the structure's peak).
         row_stream = np.repeat(self.offsets[brow] - exclusive_cumsum(dims[brow])[:-1], dims[brow])
         row_stream += np.arange(row_stream.size)
         per_col = col_len[var_of_col]
-        pos_in_col = np.arange(nnz) - np.repeat(indptr[:-1], per_col)
-        indices = row_stream[np.repeat(stream_start[var_of_col], per_col) + pos_in_col]
+        gather = np.repeat((stream_start[var_of_col] - indptr[:-1]).astype(itype), per_col)
+        gather += np.arange(nnz, dtype=itype)
+        indices = row_stream.astype(itype)[gather]
+        del gather
         self._indptr = indptr.astype(itype)
-        self._indices = indices.astype(itype)
+        self._indices = indices
         self._diag_pos = indptr[:-1] + within[inverse[:nv]][var_of_col] + j_local
         self._n = n
         parts = np.split(inverse[nv:], np.cumsum([ids.size * ids.shape[1] for ids in all_ids])[:-1])
@@ -237,6 +243,31 @@ class BlockStructure:
     def indices(self) -> NDArray[np.signedinteger]:
         """The CSC row ``indices`` of ``H`` (the same array object on every call)."""
         return self._indices
+
+    def fill_reducing_ordering(self) -> IntArray | None:
+        """A fill-reducing permutation of ``H``'s coordinates: AMD on the variables' graph
+        (CVXOPT's ``amd.order``), each variable's coordinates kept together, as GTSAM orders
+        its variables; ``None`` without CVXOPT. Computed once.
+
+        Ordering the ``n_vars`` variables instead of the ``n`` coordinates reads ``d²`` times
+        fewer entries (AMD would find the same supervariables), which keeps CHOLMOD's
+        analysis small: on a 10⁴-pose 3-D graph its memory drops from ~70 MB to a few.
+        """
+        if self._ordering is None:
+            try:
+                from cvxopt import amd, matrix, spmatrix
+            except ImportError:
+                return None
+            indptr, rows = self._block_pattern
+            cols = np.repeat(np.arange(indptr.size - 1, dtype=np.int64), np.diff(indptr))
+            lower = rows >= cols
+            nv = self.dims.size
+            pattern = spmatrix(1.0, matrix(rows[lower].astype(np.int64)), matrix(cols[lower]), (nv, nv))
+            order = np.asarray(amd.order(pattern, "L"), dtype=np.intp).reshape(-1)
+            dims = self.dims[order]
+            start = np.repeat(self.offsets[order] - exclusive_cumsum(dims)[:-1], dims)
+            self._ordering = start + np.arange(self._n)
+        return self._ordering
 
     # -- numeric assembly ----------------------------------------------------
 
