@@ -144,6 +144,23 @@ def test_random_point_and_tangent(manifold, hessian_check, seed):
 
 @cases
 @seeds
+def test_total_inner_is_the_metric_summed_over_the_batch(manifold, hessian_check, seed):
+    """The optimizers' scalar product (one ``np.vdot`` where the metric is that of the stored
+    coordinates) agrees with :meth:`inner`, for one point and for a batch of them."""
+    _, x, v, w = setup(manifold, seed)
+    value = manifold.total_inner(x, v, w)
+    assert isinstance(value, float)
+    np.testing.assert_allclose(value, float(np.sum(manifold.inner(x, v, w))), rtol=1e-12, atol=1e-15)
+    if manifold.batch_shape_of(x) == () and not isinstance(manifold, Blocks):  # Blocks: no batch axes
+        xs = manifold._random_point(np.random.default_rng(seed), (2, 3))
+        us = manifold.proj(xs, rebuild(ambient(xs), iter(np.ones(a.shape) for a in leaves(ambient(xs)))))
+        np.testing.assert_allclose(
+            manifold.total_inner(xs, us, us), float(np.sum(manifold.inner(xs, us, us))), rtol=1e-12
+        )
+
+
+@cases
+@seeds
 def test_proj_is_an_orthogonal_idempotent_projection(manifold, hessian_check, seed):
     rng, x, _, w = setup(manifold, seed)
     u = rebuild(ambient(x), iter(rng.standard_normal(a.shape) for a in leaves(ambient(x))))

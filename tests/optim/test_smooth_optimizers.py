@@ -21,6 +21,7 @@ from manopt_lie.optim import (
 
 OPTIMIZERS = {
     "gd": lambda **kw: GradientDescent(**kw),
+    "gd-adaptive": lambda **kw: GradientDescent(initial="adaptive", **kw),
     "gd-wolfe": lambda **kw: GradientDescent(line_search="wolfe", **kw),
     "cg-fr": lambda **kw: ConjugateGradient(beta="fletcher-reeves", **kw),
     "cg-pr": lambda **kw: ConjugateGradient(beta="polak-ribiere", **kw),
@@ -198,6 +199,75 @@ def test_settings_are_validated():
         GradientDescent(contraction=1.5)
     with pytest.raises(ValueError, match="line_search"):
         GradientDescent(line_search="newton")
+    with pytest.raises(ValueError, match="initial"):
+        GradientDescent(initial="newton")
+    with pytest.raises(ValueError, match="initial"):
+        Backtracking(initial="previous")
+
+
+@pytest.mark.parametrize("case", ["rayleigh", "brockett"])
+def test_barzilai_borwein_trials_cut_steepest_descent_iterations(case):
+    """The secant step as first trial: the same optimum in a fraction of the iterations, each
+    step still a decrease (the search stays monotone)."""
+    problem, x0 = _problem(case)
+    bb = GradientDescent(max_iterations=5000).solve(problem, x0)
+    adaptive = GradientDescent(initial="adaptive", max_iterations=5000).solve(problem, x0)
+    assert bb.success and bb.fun == pytest.approx(adaptive.fun, rel=1e-8, abs=1e-10)
+    assert bb.nit < 0.6 * adaptive.nit
+    assert np.all(np.diff(bb.history.cost) <= 0)
+
+
+def test_hess_operator_is_hess_at_a_fixed_point():
+    problem, _, _ = rayleigh(n=8)
+    x = problem.manifold.random_point(0)
+    apply = problem.hess_operator(x)
+    for seed in range(3):
+        v = problem.manifold.random_tangent(x, seed)
+        np.testing.assert_array_equal(apply(v), problem.hess(x, v))
+    lie, _ = karcher()
+    with pytest.raises(NotImplementedError, match="ehess"):
+        lie.hess_operator(SO3.identity())
+
+    class Doubled(Problem):
+        def hess(self, x, v):  # a subclass's own Hessian is what the operator applies
+            return 2.0 * super().hess(x, v)
+
+    doubled = Doubled(problem.manifold, problem._cost, egrad=problem._egrad, ehess=problem._ehess)
+    np.testing.assert_allclose(doubled.hess_operator(x)(v), 2.0 * problem.hess(x, v))
+
+
+def test_searches_start_from_an_optimizers_trial_and_newton_steps():
+    problem, x = _problem("rayleigh")
+    m, f0, g = problem.manifold, problem.cost(x), problem.grad(x)
+    g_norm = float(m.norm(x, g))
+    slope = -g_norm * g_norm
+    first = []
+
+    def cost(y):
+        first.append(y)
+        return problem.cost(y)
+
+    for search in (Backtracking(), StrongWolfe()):
+        first.clear()
+        search.search(cost, problem.grad, m, x, f0, -g, g_norm, slope, alpha0=0.01 / g_norm)
+        np.testing.assert_allclose(first[0], m.retr(x, -g * (0.01 / g_norm)))
+    for search in (Backtracking(initial="newton"), StrongWolfe(initial="newton")):
+        first.clear()
+        search.search(cost, problem.grad, m, x, f0, -g * (0.5 / g_norm), 0.5, -0.5 * g_norm)
+        np.testing.assert_allclose(first[0], m.retr(x, -g * (0.5 / g_norm)))  # α = 1
+        first.clear()
+        search.search(cost, problem.grad, m, x, f0, -g * (50 / g_norm), 50.0, -50 * g_norm)
+        np.testing.assert_allclose(first[0], m.retr(x, -g * (np.pi / g_norm)))  # capped at typical_dist
+
+
+def test_strong_wolfe_returns_the_transported_direction():
+    problem, x = _problem("brockett")
+    m, g = problem.manifold, problem.grad(x)
+    g_norm = float(m.norm(x, g))
+    res = StrongWolfe().search(problem.cost, problem.grad, m, x, problem.cost(x), -g, g_norm, -g_norm * g_norm)
+    assert res.success and res.grad is not None
+    np.testing.assert_allclose(res.transported, m.transp(x, res.x, -g), atol=1e-14)
+    assert Backtracking().search(problem.cost, problem.grad, m, x, problem.cost(x), -g, g_norm, -g_norm**2).transported is None
 
 
 def test_hessian_products_reuse_the_euclidean_gradient():
