@@ -27,7 +27,6 @@ certificate's share of our time, and the ratios (ours / theirs).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import subprocess
@@ -38,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from manopt_lie import SO2, SO3
+from manopt_lie.bench.report import write_json
 from manopt_lie.problems import catalogue, g2o, rotation_averaging
 from manopt_lie.problems.certify import certify, staircase
 
@@ -194,7 +194,8 @@ def main() -> None:
     report["load_after"] = _load()
     print(f"\n# load average after: {report['load_after']}")
     if args.json:
-        args.json.write_text(json.dumps(report, indent=2))
+        files = [folder / f"{name}.g2o" for name in args.datasets]
+        write_json(args.json, report, datasets=files)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ import tracemalloc
 from pathlib import Path
 from typing import Any
 
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import median_time
 from manopt_lie.problems import g2o, synthetic
 
@@ -125,7 +126,7 @@ def main() -> None:
                 flush=True,
             )
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+        write_json(args.json, rows)
 
 
 if __name__ == "__main__":

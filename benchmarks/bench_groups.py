@@ -16,7 +16,6 @@ group's batched operations; a third compares Sim3, SE23, Sim2, S3 and a Bundle w
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -25,6 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from manopt_lie import S3, SE2, SE3, SE23, SO2, SO3, Bundle, Rn, Sim2, Sim3
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import median_time
 
 
@@ -165,8 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         {k: (".2f" if "/" in k else ".0f") for k in new[0] if k != "group"},
     )
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"vs_scipy": vs_scipy, "groups": groups, "new_groups": new}, f, indent=2)
+        write_json(args.json, {"vs_scipy": vs_scipy, "groups": groups, "new_groups": new})
     return 0
 
 

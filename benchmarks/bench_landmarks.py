@@ -18,13 +18,14 @@ its solution against :func:`manopt_lie.optim.marginal_covariances` on ours.
 from __future__ import annotations
 
 import argparse
-import json
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from manopt_lie import SE2, SE3
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import interleaved
 from manopt_lie.factors import Diagonal, Information, between_factor, range_bearing_factor
 from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power
@@ -172,14 +173,11 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="a fifth of the sizes")
     parser.add_argument("--no-marginals", action="store_true")
-    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--json", type=Path, help="write the rows as JSON")
     args = parser.parse_args()
     scale = 5 if args.quick else 1
     rows = [bench(2, 10_000 // scale, 2_000 // scale, args.repeat, not args.no_marginals),
             bench(3, 5_000 // scale, 1_000 // scale, args.repeat, not args.no_marginals)]  # fmt: skip
-    if args.json:
-        print(json.dumps(rows, indent=1))
-        return
     print("| world | poses | landmarks | observations | ours (s) | GTSAM (s) | ratio | iterations | cost gap | "
           "marginals ours (s) | GTSAM (s) | ratio |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -188,6 +186,9 @@ def main() -> None:
                 if "marginals_ratio" in r else "— | — | —")  # fmt: skip
         print(f"| {r['d']}-D | {r['poses']} | {r['landmarks']} | {r['observations']} | {r['ours_s']:.3f} | "
               f"{r['gtsam_s']:.3f} | {r['ratio']:.2f} | {r['ours_nit']} | {r['rel_cost_gap']:+.1e} | {marg} |")
+
+    if args.json:
+        write_json(args.json, rows)
 
 
 if __name__ == "__main__":

@@ -48,12 +48,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 from manopt_lie import SE2  # noqa: E402
+from manopt_lie.bench.report import write_json  # noqa: E402
 from manopt_lie.bench.timing import interleaved, median_time  # noqa: E402
 from manopt_lie.linalg import cholesky_factor  # noqa: E402
 from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power  # noqa: E402
@@ -253,8 +253,7 @@ def main() -> None:
         print(f"{r['case']:26} {r['k']:5d} {r['columns']:8d} {r['selected']:9.3f} {r['solve']:9.3f}")
     print(f"\nload average after: {os.getloadavg()}")
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump({"all": rows, "few": few, "repeat": args.repeat}, fh, indent=1)
+        write_json(args.json, {"all": rows, "few": few, "repeat": args.repeat})
 
 
 if __name__ == "__main__":

@@ -70,7 +70,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
 import math
 import os
 import platform
@@ -86,6 +85,7 @@ import casadi as ca
 import numpy as np
 
 from manopt_lie import SO3
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import interleaved, median_time
 from manopt_lie.casadi import SymSO3, problem_from_casadi
 from manopt_lie.manifolds import LieGroupManifold, Power, Sphere, Stiefel
@@ -792,8 +792,7 @@ def main(argv: list[str] | None = None) -> int:
             "runs": rows, "ratios": ratios, "lbfgs": lbfgs, "tiny": tiny, "casadi": twins, "casadi_build": builds,
             "evaluations": evals,
         }  # fmt: skip
-        with open(args.json, "w") as f:
-            json.dump(out, f, indent=2)
+        write_json(args.json, out)
     return 0
 
 

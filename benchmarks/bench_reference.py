@@ -20,13 +20,13 @@ runs. ``python benchmarks/bench_reference.py [--quick] [--json out.json]``.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import median_time
 from manopt_lie.optim import LevenbergMarquardt, TrustRegion
 from manopt_lie.problems import g2o, rotation_averaging, synthetic
@@ -156,7 +156,7 @@ def main() -> None:
         rows += bench(name, spec, parametrizations, args.repeat)
     print(table(rows))
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1))
+        write_json(args.json, rows, datasets=sorted(data_dir().glob("*.g2o")))
 
 
 if __name__ == "__main__":

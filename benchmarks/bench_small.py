@@ -20,7 +20,6 @@ calls. Tangents are ``(ρ, θ)`` for us and ``(ω, v)`` for GTSAM: the same moti
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from manopt_lie import SE2, SE3, SO3
+from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import interleaved
 
 try:
@@ -205,8 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     batches = bench_batches(rng, args.sizes, args.number, args.repeat)
     print_table("Small SE(3) batches: one call of ours against a Python loop of GTSAM calls", batches)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"chain": chain, "ops": ops, "batches": batches}, f, indent=2)
+        write_json(args.json, {"chain": chain, "ops": ops, "batches": batches})
     return 0
 
 

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import platform
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_write
 from .record import Run, agreement, best_costs, solved, status_words
 
 HEADER = ("instance", "start", "n", "m", "cost", "optimizer", "iters", "time (s)", "final cost", "f*", "gap",
@@ -95,21 +98,78 @@ def summary(runs: Sequence[Run]) -> list[dict[str, Any]]:
     return out
 
 
-def environment() -> dict[str, str]:
-    import numpy
-    import scipy
+PACKAGES = ("numpy", "scipy", "casadi", "cvxopt", "qdldl", "matplotlib", "gtsam", "pymanopt", "evo", "dask")
+"""The packages whose versions every benchmark document records (``None``: not installed)."""
 
+
+def environment(datasets: Iterable[str | Path] = ()) -> dict[str, Any]:
+    """Where numbers come from: Python, the platform, manopt_lie's version, the versions of
+    :data:`PACKAGES` (read from their installed metadata, nothing imported), and the SHA-256
+    and size of every dataset file read (``datasets``): the published optima and the peers'
+    times are only comparable on the same files."""
+    from importlib import metadata
+
+    from .. import __version__
+
+    def version(name: str) -> str | None:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return None
+
+    files = {}
+    for path in map(Path, datasets):
+        digest = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                digest.update(chunk)
+        files[path.name] = {"sha256": digest.hexdigest(), "bytes": path.stat().st_size}
     return {
         "python": platform.python_version(), "platform": platform.platform(), "machine": platform.machine(),
-        "numpy": numpy.__version__, "scipy": scipy.__version__,
+        "manopt_lie": __version__, "packages": {name: version(name) for name in PACKAGES}, "datasets": files,
     }  # fmt: skip
 
 
-def document(runs: Sequence[Run], settings: Any) -> dict[str, Any]:
-    """The JSON document: settings, environment, runs (with histories) and the summary."""
+def environment_line(env: dict[str, Any]) -> str:
+    """One sentence for reports and docs tables: the versions that produced them."""
+    packages = ", ".join(f"{name} {v}" for name, v in env["packages"].items() if v is not None)
+    files = ", ".join(f"{name} ({d['sha256'][:12]})" for name, d in env["datasets"].items())
+    return (f"manopt_lie {env['manopt_lie']}, Python {env['python']} on {env['platform']}; {packages}"
+            + (f"; datasets (SHA-256): {files}" if files else "") + ".")  # fmt: skip
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float (anywhere inside lists and dicts) turned into
+    ``None`` — JSON has no nan or inf — and NumPy scalars and arrays into Python ones."""
+    if isinstance(value, np.generic | np.ndarray):
+        value = value.tolist()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def json_text(document: Any, **options: Any) -> str:
+    """Valid JSON for ``document`` (:func:`json_safe` first)."""
+    return json.dumps(json_safe(document), allow_nan=False, **options)
+
+
+def write_json(path: str | Path, results: Any, *, datasets: Iterable[str | Path] = ()) -> None:
+    """Write a benchmark script's ``results`` as ``{"environment": …, "results": …}``, atomically."""
+    text = json_text({"environment": environment(datasets), "results": results}, indent=1)
+    with atomic_write(path) as f:
+        f.write(text + "\n")
+
+
+def document(runs: Sequence[Run], settings: Any, datasets: Iterable[str | Path] = ()) -> dict[str, Any]:
+    """The JSON document: settings, environment (with the datasets' checksums), runs (with
+    histories) and the summary."""
     return {
         "settings": settings.to_json(),
-        "environment": environment(),
+        "environment": environment(datasets),
         "runs": [r.to_json() for r in runs],
         "summary": summary(runs),
     }
@@ -120,11 +180,10 @@ def markdown(
 ) -> str:
     """A self-contained markdown report: settings, the table, the per-optimizer summary
     and the plots (linked relative to ``base``, the report's directory)."""
-    env = environment()
     parts = [
         f"# {title}",
         "",
-        f"Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']} on {env['platform']}.",
+        environment_line(environment()),
         "Stopping rule: " + ", ".join(f"{k} = {v}" for k, v in settings.to_json().items()) + ".",
         "Times are solve times (each start's initialization is shared and excluded), medians over the repeats; "
         "`*` marks a run that did not reach the best final cost of its instance to 1e-5 relative.",

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
@@ -17,6 +16,7 @@ from typing import Any, NoReturn
 
 from manopt_lie.atomic import atomic_write, check_writable
 from manopt_lie.bench.figures import figure_format
+from manopt_lie.bench.report import json_safe, json_text  # noqa: F401  (re-exported for the commands)
 from manopt_lie.optim import StoppingCriteria
 
 EXIT_OK = 0
@@ -178,23 +178,6 @@ def figure_path(path: Path | None, what: str, *, inputs: Sequence[Path] = ()) ->
         except ValueError as error:
             raise UsageError(f"{what}: {error}") from None
     return output_path(path, what, inputs=inputs)
-
-
-def json_safe(value: Any) -> Any:
-    """``value`` with every non-finite float (anywhere inside lists and dicts) turned into
-    ``None``: JSON has no nan or inf."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    return value
-
-
-def json_text(document: Any, **options: Any) -> str:
-    """Valid JSON for ``document`` (:func:`json_safe` first)."""
-    return json.dumps(json_safe(document), allow_nan=False, **options)
 
 
 def print_json(document: Any) -> None:

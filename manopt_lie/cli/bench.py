@@ -242,7 +242,8 @@ def _publish(result: SuiteResult, entries: Sequence[Entry], settings: Settings, 
              title: str, out: Path | None, report_path: Path | None, plot_dir: Path | None,
              data_dir: Path | None = None, store: Path | None = None) -> None:  # fmt: skip
     paths = _plots(result, entries, settings, data_dir, plot_dir, args.plot_format) if plot_dir is not None else []
-    document = report.document(result.runs, settings)
+    files = [p for p in (entry.path(data_dir) for entry in entries) if p is not None]
+    document = report.document(result.runs, settings, datasets=files)
     if out is not None:
         _common.write_text(out, _common.json_text(document, indent=1))
     if report_path is not None:

@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
+import manopt_lie
 from manopt_lie.bench import report
 from manopt_lie.bench.record import Run, agreement, best_costs, published_precision, solved, status_name, status_words
 from manopt_lie.bench.suite import Settings, plan
@@ -133,3 +135,30 @@ def test_store_appends_resumes_and_refuses(tmp_path) -> None:
     (tmp_path / "other.jsonl").write_text("hello\n")
     with pytest.raises(StoreError, match="not a manopt-lie results store"):
         Store(tmp_path / "other.jsonl", settings, resume=True)
+
+
+# ---- where the numbers come from -------------------------------------------------------------
+
+
+def test_environment_records_versions_and_dataset_checksums(tmp_path):
+    import hashlib
+    import importlib.metadata
+
+    data = tmp_path / "tiny.g2o"
+    data.write_bytes(b"VERTEX_SE2 0 0 0 0\n")
+    env = report.environment([data])
+    assert env["manopt_lie"] == manopt_lie.__version__
+    assert env["packages"]["numpy"] == importlib.metadata.version("numpy") == np.__version__
+    assert set(env["packages"]) == set(report.PACKAGES)  # absent ones are None, not missing
+    assert env["datasets"] == {"tiny.g2o": {"sha256": hashlib.sha256(data.read_bytes()).hexdigest(), "bytes": 19}}
+    line = report.environment_line(env)
+    assert f"numpy {np.__version__}" in line and "tiny.g2o (" in line
+
+
+def test_benchmark_json_is_valid_and_carries_the_environment(tmp_path):
+    out = tmp_path / "bench.json"
+    report.write_json(out, {"ratio": np.float64(0.5), "times": np.array([1.0, np.nan]), "gap": math.inf})
+    document = json.loads(out.read_text())
+    assert document["results"] == {"ratio": 0.5, "times": [1.0, None], "gap": None}
+    assert document["environment"]["manopt_lie"] == manopt_lie.__version__
+    assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]  # no temporary left behind
