@@ -40,7 +40,7 @@ from .lie import (
 )
 from .minimize import minimize
 
-__version__ = "0.2.0.dev0"
+__version__ = "0.2.0"
 
 __all__ = [
     "minimize",

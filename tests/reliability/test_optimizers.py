@@ -27,7 +27,7 @@ from manopt_lie import SE2, SE3, SO3
 from manopt_lie.errors import NonFiniteError, ShapeError
 from manopt_lie.manifolds import LieGroupManifold, Sphere
 from manopt_lie.optim import (
-    ConjugateGradient,
+    OPTIMIZERS,
     Factor,
     GaussNewton,
     GradientDescent,
@@ -39,8 +39,10 @@ from manopt_lie.optim import (
 )
 from tests.optim.helpers import pose_chain
 
-SMOOTH = {"gd": GradientDescent, "cg": ConjugateGradient, "tr": TrustRegion}
-LEAST_SQUARES = {"gn": GaussNewton, "lm": LevenbergMarquardt, "tr": TrustRegion}
+# Every registered optimizer: the smooth ones on smooth problems, the least-squares ones
+# (and the trust region, which runs on both) on least-squares problems.
+SMOOTH = {name: e.cls for name, e in OPTIMIZERS.items() if e.accepts is Problem}
+LEAST_SQUARES = {n: e.cls for n, e in OPTIMIZERS.items() if e.accepts is LeastSquaresProblem} | {"tr": TrustRegion}
 smooth = pytest.mark.parametrize("make", SMOOTH.values(), ids=SMOOTH.keys())
 least_squares = pytest.mark.parametrize("make", LEAST_SQUARES.values(), ids=LEAST_SQUARES.keys())
 ALL = [*(pytest.param("smooth", m, id=k) for k, m in SMOOTH.items()),
