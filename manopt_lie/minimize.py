@@ -80,7 +80,7 @@ def _least_squares(manifold: Manifold, residual: Callable[..., Any], x0: Any) ->
     from .manifolds import Power
 
     single = not isinstance(manifold, Power)
-    power = Power(manifold, 1) if single else manifold
+    power = manifold if isinstance(manifold, Power) else Power(manifold, 1)
     if single:
         x0 = x0.reshape((1,)) if isinstance(x0, LieGroup) else np.asarray(x0, dtype=np.float64)[None]
     n = power.shape[0]

@@ -37,7 +37,7 @@ from ..errors import NonFiniteError, ShapeError
 __all__ = ["Kind", "Compiled", "Batched", "edges", "edge_data", "expression", "SYMBOLS"]
 
 FloatArray = NDArray[np.float64]
-Matrix = Any
+Matrix = Any  # a CasADi SX or MX matrix: casadi's stubs do not type operations across the two
 SYMBOLS = ("auto", "SX", "MX")
 MX_ABOVE = 100
 """``symbols="auto"`` uses ``MX`` (matrix operations as single nodes) once a point has more
@@ -181,7 +181,7 @@ class Batched:
         return outs
 
 
-def symbol_type(kinds: Sequence[Kind], symbols: str) -> type:
+def symbol_type(kinds: Sequence[Kind], symbols: str) -> type[Matrix]:
     """``ca.SX`` or ``ca.MX`` for ``symbols`` (``"auto"``: MX above :data:`MX_ABOVE` entries a point)."""
     if symbols not in SYMBOLS:
         raise ValueError(f"symbols must be one of {', '.join(SYMBOLS)}, got {symbols!r}")

@@ -301,7 +301,7 @@ class SymSO3(_SymRotation):
     quaternion has ``w = +0`` (either sign is valid, CONVENTIONS §3).
     """
 
-    group = SO3
+    group: ClassVar[type[LieGroup]] = SO3  # not narrowed to type[SO3]: SymS3 inherits all but the group
     dim = 3
     size = 3
 

@@ -18,8 +18,9 @@ def symbolic(group: type[LieGroup]) -> type[SymbolicGroup]:
     twin = _TWINS.get(group) or ext.TWINS.get(group) if isinstance(group, type) else None
     if twin is None and isinstance(group, type) and issubclass(group, BundleGroup):
         # Rⁿ parts have a twin inside bundles (ext.sym_rn); alone, Rⁿ needs none (plain CasADi vectors).
-        parts = [ext.sym_rn(p) if issubclass(p, RnGroup) else symbolic(p) for p in group.parts]
-        twin = ext.sym_bundle(group, tuple(parts))
+        # The ignores: mypy takes a class for not Hashable (python/mypy#20409); classes hash by identity.
+        parts = [ext.sym_rn(p) if issubclass(p, RnGroup) else symbolic(p) for p in group.parts]  # type: ignore[arg-type]
+        twin = ext.sym_bundle(group, tuple(parts))  # type: ignore[arg-type]
     if twin is None:
         name = getattr(group, "__name__", repr(group))
         raise TypeError(

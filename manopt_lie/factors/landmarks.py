@@ -54,7 +54,7 @@ def _offset(offset: LieGroup | None, m: int, d: int | None, name: str) -> tuple[
         return d, None
     s = group_measurements(offset, m, name, "offset")
     sd = getattr(type(s), "point_dim", None)
-    if POSE_GROUPS.get(sd) is not type(s) or (d is not None and sd != d):
+    if sd is None or POSE_GROUPS.get(sd) is not type(s) or (d is not None and sd != d):
         want = POSE_GROUPS[d].__name__ if d is not None else "SE2 or SE3"
         raise TypeError(f"{name}: the offset must be a {want} element, got {type(s).__name__}")
     return sd, pose_parts(s, sd, name)

@@ -41,6 +41,8 @@ definite or sigmas that are not positive (:class:`IndefiniteNoiseError`, also an
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -140,7 +142,8 @@ class NoiseModel:
     @property
     def covariance(self) -> FloatArray:
         """``Σ = Ω⁻¹ = R⁻¹R⁻ᵀ``: ``(k, k)`` if shared, else ``(m, k, k)``."""
-        r_inv = np.linalg.inv(self.sqrt_information)
+        # cast: NumPy's stubs type linalg results floating[Any]; float64 in, float64 out.
+        r_inv = cast(FloatArray, np.linalg.inv(self.sqrt_information))
         return r_inv @ np.swapaxes(r_inv, -1, -2)
 
     def squared_mahalanobis(self, r: FloatArray) -> FloatArray:
@@ -219,7 +222,7 @@ def _spd_cholesky(a: FloatArray, owner: str, what: str) -> FloatArray:
         )
     sym = 0.5 * a + 0.5 * np.swapaxes(a, -1, -2)  # (a + aᵀ)/2 would overflow near the float range
     try:
-        lower = np.linalg.cholesky(sym)
+        lower = cast(FloatArray, np.linalg.cholesky(sym))  # cast: as in covariance (float64 in, out)
     except np.linalg.LinAlgError:
         lower = None
     if lower is not None:

@@ -8,6 +8,7 @@ in place on arrays, rebinding on floats.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 C = Any
 
 
-def stack(entries: list[np.ndarray], *trailing: int) -> np.ndarray:
+def stack(entries: Sequence[np.ndarray], *trailing: int) -> np.ndarray:
     """Entries (equal or broadcastable batch shapes) as the trailing axes ``trailing`` of one array.
 
     ``np.array`` of the list, then its first axis moved last as a view: about 6× faster than

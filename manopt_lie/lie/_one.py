@@ -197,9 +197,10 @@ def _jr3(w: Floats, inverse: bool) -> Floats | None:
     if not t < HUGE2:
         return None
     theta = math.sqrt(t)
+    x, y, z = w
     if inverse:
-        return _formulas.i_plus(0.5, value(JINV_COEF, t, theta), *w, t)
-    return _formulas.i_plus(-value(COSC, t, theta), value(SINC3, t, theta), *w, t)
+        return _formulas.i_plus(0.5, value(JINV_COEF, t, theta), x, y, z, t)
+    return _formulas.i_plus(-value(COSC, t, theta), value(SINC3, t, theta), x, y, z, t)
 
 
 def so3_jr(w: Floats) -> np.ndarray | None:

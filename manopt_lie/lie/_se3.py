@@ -39,7 +39,9 @@ def log(m: FloatArray) -> FloatArray:
     return np.concatenate([_so3.jl_inv_apply(theta, t), theta], axis=-1)
 
 
-def _q_sum(rho: FloatArray, v: FloatArray, k: tuple[FloatArray, ...]) -> FloatArray:
+def _q_sum(
+    rho: FloatArray, v: FloatArray, k: tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+) -> FloatArray:
     """``k₀ρ^ + k₁v^ + k₂(vρᵀ + ρvᵀ) + k₃(v wᵀ − w vᵀ) − k₄ vvᵀ + k₅ I`` with ``w = v × ρ``
     (:func:`_formulas.q_entries`, entry by entry)."""
     r = (rho[..., 0], rho[..., 1], rho[..., 2])

@@ -250,5 +250,5 @@ def _from_spec(spec: Any) -> type[LieGroup]:
     return spec
 
 
-def _rebuild(spec: Any, data: FloatArray) -> BundleGroup:
+def _rebuild(spec: Any, data: FloatArray) -> LieGroup:
     return _from_spec(spec)._wrap(data)

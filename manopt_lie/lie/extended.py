@@ -19,8 +19,25 @@ from .groups import SO2, SO3
 __all__ = ["Sim3", "Sim2", "SE23"]
 
 
-def _first(bad: np.ndarray) -> tuple[int, ...]:
+def _first(bad: np.ndarray | np.bool_) -> tuple[int, ...]:
     return tuple(int(i) for i in np.argwhere(bad)[0]) if bad.ndim else ()
+
+
+def _project_similarity(a: FloatArray) -> FloatArray:
+    """Nearest ``sR`` in Frobenius norm (Sim3 and Sim2): ``R`` the nearest rotation, ``s = ⟨R, M⟩_F / d``."""
+    sr, t = _matrix.split(a)
+    r = _matrix.project_rotation(sr)
+    big = np.abs(sr).max(axis=(-2, -1))
+    d = sr.shape[-1]
+    with np.errstate(over="ignore"):  # a scale beyond the float range is refused below
+        s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / d * big
+    bad = ~(s > 0.0)
+    if bad.any():
+        raise NotInGroupError(f"from_matrix: matrix at batch index {_first(bad)} has no positive scale")
+    bad = ~np.isfinite(s)
+    if bad.any():
+        raise RangeError(f"from_matrix: the scale of the matrix at batch index {_first(bad)} overflows float64")
+    return _matrix.assemble(r * s[..., None, None], t)
 
 
 class Sim3(LieGroup):
@@ -84,20 +101,7 @@ class Sim3(LieGroup):
 
     @classmethod
     def _project(cls, a: FloatArray) -> FloatArray:
-        """Nearest ``sR`` in Frobenius norm: ``R`` the nearest rotation, ``s = ⟨R, M⟩_F / d``."""
-        sr, t = _matrix.split(a)
-        r = _matrix.project_rotation(sr)
-        big = np.abs(sr).max(axis=(-2, -1))
-        d = sr.shape[-1]
-        with np.errstate(over="ignore"):  # a scale beyond the float range is refused below
-            s = np.einsum("...ij,...ij->...", r, sr / np.where(big > 0, big, 1.0)[..., None, None]) / d * big
-        bad = ~(s > 0.0)
-        if bad.any():
-            raise NotInGroupError(f"from_matrix: matrix at batch index {_first(bad)} has no positive scale")
-        bad = ~np.isfinite(s)
-        if bad.any():
-            raise RangeError(f"from_matrix: the scale of the matrix at batch index {_first(bad)} overflows float64")
-        return _matrix.assemble(r * s[..., None, None], t)
+        return _project_similarity(a)
 
     @classmethod
     def from_parts(cls, rotation: SO3, translation: ArrayLike, scale: ArrayLike) -> Sim3:
@@ -186,7 +190,9 @@ class Sim2(LieGroup):
         _matrix.check_last_row(a, tol, name)
         return _matrix.assemble(_matrix.polish_rotation(r) * s[..., None, None], t)
 
-    _project = classmethod(Sim3._project.__func__)  # type: ignore[attr-defined]
+    @classmethod
+    def _project(cls, a: FloatArray) -> FloatArray:
+        return _project_similarity(a)
 
     @classmethod
     def from_parts(cls, rotation: SO2, translation: ArrayLike, scale: ArrayLike) -> Sim2:

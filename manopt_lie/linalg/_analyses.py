@@ -39,7 +39,8 @@ def pattern_key(backend: str, indptr: NDArray[np.signedinteger], indices: NDArra
     its arrays' bytes (no copy of contiguous arrays)."""
     digest = hashlib.blake2b(digest_size=16)
     for a in (indptr, indices):
-        digest.update(memoryview(np.ascontiguousarray(a)).cast("B"))
+        # .data, not memoryview(...): NumPy's stubs give ndarray a __buffer__ on Python 3.12+ only.
+        digest.update(np.ascontiguousarray(a).data.cast("B"))
     dtypes = f"{indptr.dtype.str}{indices.dtype.str}"
     return backend, int(indptr.size - 1), int(indices.size), dtypes, digest.digest()
 

@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._analyses import ANALYSES, pattern_key
-from ._backends import _PACKAGES, BACKENDS, Backend, available_backends
+from ._backends import _CHOLMOD, _PACKAGES, BACKENDS, Backend, available_backends
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
@@ -171,7 +171,7 @@ class CholeskySolver:
                     raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
             if trusted and self.backend == "cholmod":
                 assert self._structure is not None
-                impl = BACKENDS["cholmod"](H.indptr, H.indices, self._structure.fill_reducing_ordering())
+                impl = _CHOLMOD(H.indptr, H.indices, self._structure.fill_reducing_ordering())
             else:
                 impl = BACKENDS[self.backend](H.indptr, H.indices)
         if self._lend is not None:

@@ -19,7 +19,7 @@ retraction, also for costs that are not.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -95,7 +95,8 @@ class Grassmann(EmbeddedManifold):
         ``(I − XXᵀ) Y (XᵀY)⁻¹ = U tan(Σ) Wᵀ`` (thin SVD), ``V = U Σ Wᵀ`` — for subspaces
         with no principal angle of ``π/2`` (``XᵀY`` invertible)."""
         ytx = _t(y) @ x
-        b = np.linalg.solve(ytx, _t(y) - ytx @ _t(x))  # Bᵀ = (YᵀX)⁻¹ Yᵀ(I − XXᵀ)
+        # Bᵀ = (YᵀX)⁻¹ Yᵀ(I − XXᵀ); cast: NumPy's stubs type solve's result floating[Any] (float64 here).
+        b = cast(FloatArray, np.linalg.solve(ytx, _t(y) - ytx @ _t(x)))
         u, s, wt = np.linalg.svd(_t(b), full_matrices=False)
         return (u * np.arctan(s)[..., None, :]) @ wt
 

@@ -285,12 +285,11 @@ class Run:
             return Status.GRADIENT_NORM
         if self.nit > 0 and step < s.min_step:
             return Status.STEP_SIZE
-        if (
-            f_prev is not None
-            and s.rel_cost_decrease > 0
-            and f_prev - f <= s.rel_cost_decrease * max(self.scale, abs(f_prev))
-        ):
-            return Status.COST_DECREASE
+        if f_prev is not None:
+            rel = s.rel_cost_decrease
+            assert rel is not None, "Run needs a decided rule (StoppingCriteria.for_problem)"
+            if rel > 0 and f_prev - f <= rel * max(self.scale, abs(f_prev)):
+                return Status.COST_DECREASE
         if self.nit >= s.max_iterations:
             return Status.MAX_ITERATIONS
         if now >= s.max_time:
