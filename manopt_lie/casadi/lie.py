@@ -476,5 +476,3 @@ class SymSE3(_SymTransform):
         r, t = cls._split(x)
         top = ca.horzcat(r, ca.mtimes(ca.skew(t), r))
         return ca.vertcat(top, ca.horzcat(ca.DM.zeros(3, 3), r))
-
-
