@@ -7,6 +7,8 @@ Storage and tangent ordering follow CONVENTIONS §2: ``Sim3`` as ``(..., 4, 4)``
 
 from __future__ import annotations
 
+from typing import Any, Self
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -40,7 +42,80 @@ def _project_similarity(a: FloatArray) -> FloatArray:
     return _matrix.assemble(r * s[..., None, None], t)
 
 
-class Sim3(LieGroup):
+class _Similarity(LieGroup):
+    """What Sim(3) and Sim(2) share: storage ``[[s·R, t], [0, 1]]`` with ``s = e^σ`` the
+    tangent's last component, the kernels of ``_kernels`` and the rotations of ``_rotations``."""
+
+    __slots__ = ()
+    _kernels: Any
+    _rotations: type[LieGroup]
+    _compose = staticmethod(_matrix.h_compose)  # blocks [[Ma Mb, Ma tb + ta], [0, 1]] hold for M = sR
+    _act = staticmethod(_matrix.h_act)
+
+    @classmethod
+    def _exp(cls, tau: FloatArray) -> FloatArray:
+        _refuse_scale(tau[..., -1], cls._kernels.SIGMA_MAX)
+        with np.errstate(over="ignore"):
+            out = cls._kernels.exp(tau)
+        bad = ~np.isfinite(out).all(axis=(-2, -1))
+        if bad.any():
+            raise RangeError(
+                f"tau: the translation W(σ, θ)ρ at batch index {_first(bad)} overflows float64 (|ρ|·e^σ too large)"
+            )
+        return out
+
+    @classmethod
+    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
+        n = cls.point_dim + 1
+        return np.array(np.broadcast_to(np.eye(n), batch + (n, n)))
+
+    @classmethod
+    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
+        """Random rotations (Haar), ``t ~ N(0, I)``, ``σ ~ N(0, 1)``."""
+        r = cls._rotations._random(rng, batch) * np.exp(rng.standard_normal(batch))[..., None, None]
+        return _matrix.assemble(r, rng.standard_normal(batch + (cls.point_dim,)))
+
+    @classmethod
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        sr, t = _matrix.split(a)
+        s = cls._kernels.scale(a)
+        bad = ~(s > 0.0)
+        if bad.any():
+            raise NotInGroupError(f"{name}: matrix at batch index {_first(bad)} has a zero first column (scale s = 0)")
+        r = sr / s[..., None, None]
+        _matrix.check_rotation(r, tol, name)
+        _matrix.check_last_row(a, tol, name)
+        return _matrix.assemble(_matrix.polish_rotation(r) * s[..., None, None], t)
+
+    @classmethod
+    def _project(cls, a: FloatArray) -> FloatArray:
+        return _project_similarity(a)
+
+    @classmethod
+    def from_parts(cls, rotation: LieGroup, translation: ArrayLike, scale: ArrayLike) -> Self:
+        """``[[s·R, t], [0, 1]]`` from rotations, translations ``(..., d)`` and scales ``s > 0``."""
+        s = as_batch(scale, (), "scale")
+        if not (s > 0).all():
+            raise NotInGroupError("from_parts: scales must be > 0")
+        r = cls._rotations._same(rotation).as_matrix() * s[..., None, None]
+        return cls._wrap(_matrix.assemble(r, as_batch(translation, (cls.point_dim,), "translation")))
+
+    def rotation(self) -> LieGroup:
+        """``R``."""
+        d = self.point_dim
+        return self._rotations._wrap(self._data[..., :d, :d] / self.scale()[..., None, None])
+
+    def translation(self) -> FloatArray:
+        """``t``, ``(..., d)`` (a read-only view)."""
+        d = self.point_dim
+        return self._data[..., :d, d]
+
+    def scale(self) -> FloatArray:
+        """``s = e^σ``, shape ``batch_shape``."""
+        return self._kernels.scale(self._data)
+
+
+class Sim3(_Similarity):
     """3-D similarities ``X·p = s R p + t``: ``(..., 4, 4)`` matrices ``[[s·R, t], [0, 1]]``,
     tangent ``(ρ, θ, σ)`` as ``(..., 7)`` with ``s = e^σ``; ``hat = [[θ^ + σI, ρ], [0, 0]]``.
 
@@ -52,11 +127,11 @@ class Sim3(LieGroup):
     dim = 7
     point_dim = 3
     storage_shape = (4, 4)
+    _kernels = _sim3
+    _rotations = SO3
 
     _log = staticmethod(_sim3.log)
-    _compose = staticmethod(_matrix.h_compose)  # blocks [[Ma Mb, Ma tb + ta], [0, 1]] hold for M = sR
     _inverse = staticmethod(_sim3.inverse)
-    _act = staticmethod(_matrix.h_act)
     _act_jac = staticmethod(_sim3.act_jac)
     _adjoint = staticmethod(_sim3.adjoint)
     _ad = staticmethod(_sim3.ad)
@@ -65,76 +140,8 @@ class Sim3(LieGroup):
     _hat = staticmethod(_sim3.hat)
     _vee = staticmethod(_sim3.vee)
 
-    @staticmethod
-    def _exp(tau: FloatArray) -> FloatArray:
-        _refuse_scale(tau[..., 6], _sim3.SIGMA_MAX)
-        with np.errstate(over="ignore"):
-            out = _sim3.exp(tau)
-        bad = ~np.isfinite(out).all(axis=(-2, -1))
-        if bad.any():
-            raise RangeError(
-                f"tau: the translation W(σ, θ)ρ at batch index {_first(bad)} overflows float64 (|ρ|·e^σ too large)"
-            )
-        return out
 
-    @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        return np.array(np.broadcast_to(np.eye(4), batch + (4, 4)))
-
-    @classmethod
-    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
-        """Haar rotations, ``t ~ N(0, I)``, ``σ ~ N(0, 1)``."""
-        r = SO3._random(rng, batch) * np.exp(rng.standard_normal(batch))[..., None, None]
-        return _matrix.assemble(r, rng.standard_normal(batch + (3,)))
-
-    @classmethod
-    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
-        sr, t = _matrix.split(a)
-        s = _sim3.scale(a)
-        bad = ~(s > 0.0)
-        if bad.any():
-            raise NotInGroupError(f"{name}: matrix at batch index {_first(bad)} has a zero first column (scale s = 0)")
-        r = sr / s[..., None, None]
-        _matrix.check_rotation(r, tol, name)
-        _matrix.check_last_row(a, tol, name)
-        return _matrix.assemble(_matrix.polish_rotation(r) * s[..., None, None], t)
-
-    @classmethod
-    def _project(cls, a: FloatArray) -> FloatArray:
-        return _project_similarity(a)
-
-    @classmethod
-    def from_parts(cls, rotation: SO3, translation: ArrayLike, scale: ArrayLike) -> Sim3:
-        """``[[s·R, t], [0, 1]]`` from a rotation, translations ``(..., 3)`` and scales ``s > 0``."""
-        s = as_batch(scale, (), "scale")
-        if not (s > 0).all():
-            raise NotInGroupError("from_parts: scales must be > 0")
-        r = SO3._same(rotation).as_matrix() * s[..., None, None]
-        return cls._wrap(_matrix.assemble(r, as_batch(translation, (3,), "translation")))
-
-    def rotation(self) -> SO3:
-        """``R``."""
-        return SO3._wrap(self._data[..., :3, :3] / self.scale()[..., None, None])
-
-    def translation(self) -> FloatArray:
-        """``t``, ``(..., 3)`` (a read-only view)."""
-        return self._data[..., :3, 3]
-
-    def scale(self) -> FloatArray:
-        """``s = e^σ``, shape ``batch_shape``."""
-        return _sim3.scale(self._data)
-
-
-def _refuse_scale(sigma: FloatArray, limit: float) -> None:
-    bad = ~(np.abs(sigma) <= limit)
-    if bad.any():
-        raise RangeError(
-            f"tau: log-scale σ = {sigma[bad].flat[0]:g} at batch index {_first(bad)} is outside "
-            f"[-{limit:g}, {limit:g}]: the scale e^σ is not representable"
-        )
-
-
-class Sim2(LieGroup):
+class Sim2(_Similarity):
     """Planar similarities ``X·p = s R p + t``: ``(..., 3, 3)`` matrices ``[[s·R, t], [0, 1]]``,
     tangent ``(ρx, ρy, θ, σ)`` as ``(..., 4)``; ``hat = [[θJ + σI, ρ], [0, 0]]``.
 
@@ -145,11 +152,11 @@ class Sim2(LieGroup):
     dim = 4
     point_dim = 2
     storage_shape = (3, 3)
+    _kernels = _sim2
+    _rotations = SO2
 
     _log = staticmethod(_sim2.log)
-    _compose = staticmethod(_matrix.h_compose)
     _inverse = staticmethod(_sim2.inverse)
-    _act = staticmethod(_matrix.h_act)
     _act_jac = staticmethod(_sim2.act_jac)
     _adjoint = staticmethod(_sim2.adjoint)
     _ad = staticmethod(_sim2.ad)
@@ -158,62 +165,14 @@ class Sim2(LieGroup):
     _hat = staticmethod(_sim2.hat)
     _vee = staticmethod(_sim2.vee)
 
-    @staticmethod
-    def _exp(tau: FloatArray) -> FloatArray:
-        _refuse_scale(tau[..., 3], _sim2.SIGMA_MAX)
-        with np.errstate(over="ignore"):
-            out = _sim2.exp(tau)
-        bad = ~np.isfinite(out).all(axis=(-2, -1))
-        if bad.any():
-            raise RangeError(f"tau: the translation W(σ, θ)ρ at batch index {_first(bad)} overflows float64")
-        return out
 
-    @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        return np.array(np.broadcast_to(np.eye(3), batch + (3, 3)))
-
-    @classmethod
-    def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
-        """Uniform angles, ``t ~ N(0, I)``, ``σ ~ N(0, 1)``."""
-        r = SO2._random(rng, batch) * np.exp(rng.standard_normal(batch))[..., None, None]
-        return _matrix.assemble(r, rng.standard_normal(batch + (2,)))
-
-    @classmethod
-    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
-        sr, t = _matrix.split(a)
-        s = _sim2.scale(a)
-        bad = ~(s > 0.0)
-        if bad.any():
-            raise NotInGroupError(f"{name}: matrix at batch index {_first(bad)} has a zero first column (scale s = 0)")
-        r = sr / s[..., None, None]
-        _matrix.check_rotation(r, tol, name)
-        _matrix.check_last_row(a, tol, name)
-        return _matrix.assemble(_matrix.polish_rotation(r) * s[..., None, None], t)
-
-    @classmethod
-    def _project(cls, a: FloatArray) -> FloatArray:
-        return _project_similarity(a)
-
-    @classmethod
-    def from_parts(cls, rotation: SO2, translation: ArrayLike, scale: ArrayLike) -> Sim2:
-        """``[[s·R, t], [0, 1]]`` from a rotation, translations ``(..., 2)`` and scales ``s > 0``."""
-        s = as_batch(scale, (), "scale")
-        if not (s > 0).all():
-            raise NotInGroupError("from_parts: scales must be > 0")
-        r = SO2._same(rotation).as_matrix() * s[..., None, None]
-        return cls._wrap(_matrix.assemble(r, as_batch(translation, (2,), "translation")))
-
-    def rotation(self) -> SO2:
-        """``R``."""
-        return SO2._wrap(self._data[..., :2, :2] / self.scale()[..., None, None])
-
-    def translation(self) -> FloatArray:
-        """``t``, ``(..., 2)`` (a read-only view)."""
-        return self._data[..., :2, 2]
-
-    def scale(self) -> FloatArray:
-        """``s = e^σ``, shape ``batch_shape``."""
-        return _sim2.scale(self._data)
+def _refuse_scale(sigma: FloatArray, limit: float) -> None:
+    bad = ~(np.abs(sigma) <= limit)
+    if bad.any():
+        raise RangeError(
+            f"tau: log-scale σ = {sigma[bad].flat[0]:g} at batch index {_first(bad)} is outside "
+            f"[-{limit:g}, {limit:g}]: the scale e^σ is not representable"
+        )
 
 
 class SE23(LieGroup):
