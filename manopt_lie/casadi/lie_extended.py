@@ -31,25 +31,31 @@ def _jl_inv_apply(theta: Matrix, v: Matrix) -> Matrix:
     return v - 0.5 * wv + jinv_coef(ca.sumsqr(theta)) * ca.cross(theta, wv)
 
 
-class SymSim3(SymbolicGroup):
+class _SymSimilarity(SymbolicGroup):
+    """Sim(3) and Sim(2)'s storage ``[[s·R, t], [0, 1]]`` of size ``size``."""
+
+    @classmethod
+    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
+        a = cls._element(x, name)
+        d = cls.size - 1
+        return a[:d, :d], a[:d, d]
+
+    @classmethod
+    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
+        d = cls.size - 1
+        return ca.vertcat(ca.horzcat(m, t), ca.horzcat(ca.DM.zeros(1, d), ca.DM.ones(1, 1)))
+
+    @classmethod
+    def from_matrix(cls, m: Any) -> Matrix:
+        return cls._assemble(*cls._split(m, "m"))
+
+
+class SymSim3(_SymSimilarity):
     """Sim(3): ``4×4`` ``[[s·R, t], [0, 1]]``, tangent ``(ρ, θ, σ)`` as ``7×1``."""
 
     group = Sim3
     dim = 7
     size = 4
-
-    @classmethod
-    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
-        a = cls._element(x, name)
-        return a[:3, :3], a[:3, 3]
-
-    @classmethod
-    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
-        return ca.vertcat(ca.horzcat(m, t), ca.horzcat(ca.DM.zeros(1, 3), ca.DM.ones(1, 1)))
-
-    @classmethod
-    def from_matrix(cls, m: Any) -> Matrix:
-        return cls._assemble(*cls._split(m, "m"))
 
     @classmethod
     def exp(cls, tau: Any) -> Matrix:
@@ -108,25 +114,12 @@ class SymSim3(SymbolicGroup):
         return ca.vertcat(top, mid, ca.horzcat(ca.DM.zeros(1, 6), ca.DM.ones(1, 1)))
 
 
-class SymSim2(SymbolicGroup):
+class SymSim2(_SymSimilarity):
     """Sim(2): ``3×3`` ``[[s·R, t], [0, 1]]``, tangent ``(ρx, ρy, θ, σ)`` as ``4×1``."""
 
     group = Sim2
     dim = 4
     size = 3
-
-    @classmethod
-    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
-        a = cls._element(x, name)
-        return a[:2, :2], a[:2, 2]
-
-    @classmethod
-    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
-        return ca.vertcat(ca.horzcat(m, t), ca.horzcat(ca.DM.zeros(1, 2), ca.DM.ones(1, 1)))
-
-    @classmethod
-    def from_matrix(cls, m: Any) -> Matrix:
-        return cls._assemble(*cls._split(m, "m"))
 
     @staticmethod
     def _w(sigma: Matrix, theta: Matrix) -> tuple[Matrix, Matrix]:
