@@ -22,9 +22,11 @@ FORMATS = ("png", "pdf", "svg")
 PALETTE: dict[str, str] = {
     "lm": "tab:blue", "gtsam-lm": "tab:orange", "gn": "tab:green", "tr": "tab:red",
     "pymanopt-tr": "tab:purple", "gtsam-dogleg": "tab:brown", "cg": "tab:olive",
-    "gd": "tab:gray", "ipopt": "black",
+    "gd": "tab:gray", "ipopt": "black", "lbfgs": "tab:pink", "dogleg": "tab:cyan", "staircase": "gold",
 }  # fmt: skip
-_FALLBACK = ["tab:pink", "tab:cyan", "tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+"""Matplotlib colours of the optimizers and peers, by name, so every figure of a report
+draws each one alike; other names hash into a fallback list (:func:`color`)."""
+_FALLBACK = ["navy", "teal", "maroon", "darkkhaki", "indigo", "sienna", "darkslategray", "orchid"]
 
 
 def color(optimizer: str) -> str:

@@ -48,6 +48,18 @@ def test_colors_are_stable():
     assert len(set(PALETTE.values())) == len(PALETTE)
 
 
+def test_every_solver_and_peer_has_a_colour_of_its_own():
+    """A demo or bench figure draws every registered optimizer, graph solver and peer, each
+    in its own colour (no two lines alike, none from the hashed fallback)."""
+    from manopt_lie.bench.peers import PEERS
+    from manopt_lie.optim import OPTIMIZERS
+    from manopt_lie.problems.solvers import GRAPH_SOLVERS
+
+    names = [*OPTIMIZERS, *GRAPH_SOLVERS, *PEERS]
+    assert set(names) <= set(PALETTE)
+    assert len({color(name) for name in names}) == len(names)
+
+
 def test_convergence_png(tmp_path):
     runs = [
         make_run("lm", fun=1.0),
