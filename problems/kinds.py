@@ -69,6 +69,8 @@ KINDS: dict[str, Kind] = {
              LandmarkGraph, ("geodesic",), None, lambda x: x),
     )
 }  # fmt: skip
+"""The problem kinds by the command line's ``--problem`` name: pose graphs, rotation
+averaging and landmark SLAM, each with its costs and how a graph read from a file becomes one."""
 
 
 def get_kind(name: str) -> Kind:

@@ -177,6 +177,7 @@ class LandmarkGraph(Graph):
 
     @property
     def n_landmarks(self) -> int:
+        """Number of landmarks."""
         return len(self.landmark_ids)
 
     @property
@@ -186,10 +187,12 @@ class LandmarkGraph(Graph):
 
     @property
     def d(self) -> int:
+        """The dimension of the world, 2 or 3 (of the poses and landmarks)."""
         return self.poses.d
 
     @property
     def group(self) -> type[LieGroup]:
+        """The group of the poses, ``SE2`` or ``SE3``."""
         return self.poses.group
 
     @property
@@ -281,6 +284,7 @@ class LandmarkGraph(Graph):
         return [f"pose {a} → landmark {b}{where}" for a, b, where in zip(pose, point, lines, strict=True)]
 
     def prior_names(self, priors: Any) -> list[str]:
+        """``"prior on pose 3 (line 12)"`` for messages, one per index of ``priors``."""
         index = np.asarray(priors, dtype=np.int64).reshape(-1)
         lines = [""] * len(index) if self.prior_lines is None else [f" (line {ln})" for ln in self.prior_lines[index]]
         ids = self.poses.ids[self.prior_poses[index]]

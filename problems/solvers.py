@@ -46,6 +46,7 @@ class GraphSolver:
     solve: Callable[[Graph, Any, StoppingCriteria], OptimizeResult]
 
     def applies(self, kind: str, cost: str) -> bool:
+        """Whether this solver solves problems of ``kind`` (e.g. ``"pose-graph"``) on ``cost``."""
         return kind in self.kinds and cost in self.costs
 
 
@@ -85,6 +86,7 @@ GRAPH_SOLVERS: dict[str, GraphSolver] = {
                     _staircase),
     )
 }  # fmt: skip
+"""The graph solvers by name (``--optimizer staircase`` on the command line and in suites)."""
 
 
 def get_graph_solver(name: str) -> GraphSolver:

@@ -44,6 +44,7 @@ FloatArray = NDArray[np.float64]
 PathOrFile = str | os.PathLike[str] | IO[str]
 
 FORMATS = ("tum", "kitti", "g2o")
+"""The trajectory file formats :func:`read` and the command line know, by name."""
 ROTATION_TOL = 1e-4
 """Largest ``‖RᵀR − I‖`` accepted (and projected away) in a KITTI rotation block: KITTI's
 files print 7–9 significant digits, which leaves errors near 1e-7."""
@@ -79,10 +80,12 @@ class Trajectory:
 
     @property
     def n(self) -> int:
+        """Number of poses."""
         return int(self.poses.batch_shape[0])
 
     @property
     def d(self) -> int:
+        """The dimension of the positions, 2 or 3."""
         return int(self.poses.point_dim)  # type: ignore[attr-defined]
 
     @property

@@ -32,8 +32,9 @@ __all__ += ["atan_ratio", "atan2_ratio", "emoment0", "emoment1", "emoment2"]
 # A CasADi SX, MX or DM matrix. Typed ``Any``: casadi's stubs do not type arithmetic across the three.
 Matrix: TypeAlias = Any
 _CASADI = (ca.SX, ca.MX, ca.DM)
-#: The CasADi backend of ``lie._series``: closed forms on CasADi matrices, ``where`` = ``if_else``.
 CASADI = Backend(ca.sin, ca.cos, ca.sqrt, ca.atan, ca.atan2, ca.fmax, ca.if_else, ca.sinh, ca.cosh, ca.exp)
+"""The CasADi backend of ``lie._series``: the same closed forms and series as the numeric
+kernels, evaluated on CasADi matrices (``where`` is ``if_else``)."""
 
 
 def _matrix(a: Any, name: str) -> Matrix:

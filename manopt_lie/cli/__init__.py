@@ -26,6 +26,7 @@ __all__ = ["build_parser", "main"]
 
 
 def build_parser() -> _common.Parser:
+    """The ``manopt-lie`` argument parser with its subcommands (demo, solve, bench, eval)."""
     from .. import __version__
 
     parser = _common.Parser(

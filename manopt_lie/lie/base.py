@@ -175,6 +175,7 @@ class LieGroup:
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
+        """The leading batch axes: the stored array's shape without :attr:`storage_shape`."""
         return self._data.shape[: self._data.ndim - len(self.storage_shape)]
 
     def __len__(self) -> int:
@@ -190,9 +191,11 @@ class LieGroup:
         return self._wrap(self._data[idx + tail])
 
     def reshape(self: G, batch_shape: tuple[int, ...]) -> G:
+        """The same elements with the batch axes reshaped to ``batch_shape`` (as ``ndarray.reshape``)."""
         return self._wrap(self._data.reshape(tuple(batch_shape) + self.storage_shape))
 
     def broadcast_to(self: G, batch_shape: tuple[int, ...]) -> G:
+        """The elements broadcast to the batch shape ``batch_shape`` (a read-only view, as ``np.broadcast_to``)."""
         return self._wrap(np.broadcast_to(self._data, tuple(batch_shape) + self.storage_shape))
 
     @classmethod

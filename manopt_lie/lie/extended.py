@@ -230,6 +230,7 @@ class SE23(LieGroup):
         return cls._wrap(_se23.assemble(r, p, v))
 
     def rotation(self) -> SO3:
+        """``R``, the rotation block, as an :class:`SO3` element of the same batch shape."""
         return SO3._wrap(self._data[..., :3, :3])
 
     def position(self) -> FloatArray:

@@ -55,18 +55,24 @@ class LinearSolver(Protocol):
     :class:`CholeskySolver` and :class:`PCGSolver` implement it.
     """
 
-    def bind(self, structure: BlockStructure) -> LinearSolver: ...
+    def bind(self, structure: BlockStructure) -> LinearSolver:
+        """A fresh solver for systems of ``structure``'s pattern (the template is left unchanged)."""
+        ...
 
     def __call__(self, H: sp.csc_matrix, b: FloatArray) -> FloatArray: ...
 
     @property
-    def stats(self) -> Mapping[str, float]: ...
+    def stats(self) -> Mapping[str, float]:
+        """Numbers about the last solve (e.g. PCG's iterations and residual), empty for a direct solver."""
+        ...
 
 
 LINEAR_SOLVERS: dict[str, Callable[[], LinearSolver]] = {
     "cholesky": CholeskySolver,  # sparse Cholesky, symbolic analysis reused (the default)
     "pcg": PCGSolver,  # conjugate gradients preconditioned by the variables' diagonal blocks
 }
+"""The linear solvers by name, as ``linear_solver="cholesky" | "pcg"`` selects them in
+``GaussNewton``/``LevenbergMarquardt`` (see :func:`get_linear_solver`)."""
 
 
 def get_linear_solver(spec: str | LinearSolver | None = None) -> LinearSolver:

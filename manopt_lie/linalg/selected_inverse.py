@@ -76,6 +76,7 @@ class CholeskyFactor:
 
     @property
     def n(self) -> int:
+        """The order of the factored matrix (the length of the fill-reducing permutation)."""
         return int(self.perm.size)
 
     @property

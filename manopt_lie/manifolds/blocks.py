@@ -56,6 +56,7 @@ class Values(tuple):  # type: ignore[type-arg]
         return tuple.__getitem__(self, key)
 
     def items(self) -> Iterator[tuple[str, Any]]:
+        """``(name, value)`` per block, in order, as ``dict.items``."""
         return zip(self.names, self, strict=True)
 
     def replace(self, **parts: Any) -> Values:

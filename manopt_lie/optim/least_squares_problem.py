@@ -268,6 +268,7 @@ class LeastSquaresProblem(Problem):
 
     @property
     def factors(self) -> tuple[Factor, ...]:
+        """The factor types of the cost ``½ Σ_f Σ_e ρ_f(‖r_f,e‖²)``, in the order given."""
         return self._factors
 
     @property

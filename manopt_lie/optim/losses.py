@@ -41,10 +41,14 @@ class RobustLoss(ABC):
     """``ρ(s)`` of the squared residual norm ``s`` and its derivative, the IRLS weight."""
 
     @abstractmethod
-    def rho(self, s: FloatArray) -> FloatArray: ...
+    def rho(self, s: FloatArray) -> FloatArray:
+        """``ρ(s)`` elementwise, for squared residual norms ``s ≥ 0`` of any shape; ``ρ(s) ≈ s`` near 0."""
+        ...
 
     @abstractmethod
-    def weight(self, s: FloatArray) -> FloatArray: ...
+    def weight(self, s: FloatArray) -> FloatArray:
+        """The IRLS weight ``w = ρ'(s)`` elementwise, same shape as ``s``; ``w(0) = 1``."""
+        ...
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,11 @@ from .problem import Problem
 __all__ = ["PRECONDITIONERS", "Preconditioner", "bind_preconditioner", "check_preconditioner"]
 
 Preconditioner = Callable[[Any, Any], Any]
+"""A preconditioner given as a function ``(x, v) -> P⁻¹v``: at the point ``x``, a tangent
+vector ``v`` mapped by a symmetric positive definite approximation of the inverse Hessian."""
 PRECONDITIONERS = ("auto", "gauss-newton", "block-jacobi", "identity")
+"""The preconditioners ``TrustRegion(preconditioner=…)`` accepts by name; ``"auto"`` picks
+Gauss-Newton (a Cholesky factor of ``JᵀJ``) on least-squares problems, identity otherwise."""
 _NEED_LEAST_SQUARES = ("gauss-newton", "block-jacobi")
 
 

@@ -87,6 +87,9 @@ class OptimizerEntry:
 
 
 OPTIMIZERS: dict[str, OptimizerEntry] = {}
+"""Every optimizer by its short name (``"gd"``, ``"cg"``, ``"lbfgs"``, ``"tr"``, ``"gn"``,
+``"lm"``, ``"dogleg"``), filled by :func:`register`: what the command line, the benchmark
+harness and :func:`~manopt_lie.minimize` choose from (``get_optimizer(name).make(stopping)``)."""
 
 
 def register(entry: OptimizerEntry) -> None:

@@ -152,6 +152,7 @@ class OptimizeResult(Mapping[str, Any]):
 
     @property
     def success(self) -> bool:
+        """Whether the run stopped on a convergence test (``status.converged``), as SciPy's ``success``."""
         return self.status.converged
 
     # ---- the mapping ------------------------------------------------------------------

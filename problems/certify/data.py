@@ -113,6 +113,7 @@ class Relaxation:
 
     @property
     def has_translations(self) -> bool:
+        """Whether the problem has translations (a pose graph) rather than rotations only."""
         return self.n_translations > 0
 
     # ---- the quadratic form -----------------------------------------------------------

@@ -106,6 +106,7 @@ class Level:
 
     @property
     def iterations(self) -> int:
+        """Trust-region iterations at this rank, the polish's included."""
         return self.result.nit + (self.polish.nit if self.polish is not None else 0)
 
     @property

@@ -78,6 +78,8 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Parametrization = Literal["auto", "quaternion", "matrix"]
 PARAMETRIZATIONS = ("auto", "quaternion", "matrix")
+"""How the NLP parametrizes rotations: unit quaternions, or matrices with ``RᵀR = I``
+as constraints; ``"auto"`` chooses per problem."""
 COSTS = ("chordal", "geodesic")
 KINDS = (PoseGraph.kind, RotationAveraging.kind)
 """The problem kinds the reference solves (the measurement graphs of one group)."""

@@ -26,7 +26,9 @@ EXACT_WEIGHT = 1.0
 """Information weight of a noise-free component (``σ = 0``), and ``κ`` of noise-free rotation averaging."""
 
 DEFAULT_TRANSLATION_NOISE = 0.05  # metres
+"""Standard deviation ``σ_t`` (metres) of the translation noise of each measurement, per axis."""
 DEFAULT_ROTATION_NOISE = 0.01  # radians
+"""Standard deviation ``σ_R`` (radians) of the rotation noise, ``R̃ = R·Exp(ε)``, ``ε ~ N(0, σ_R² I)``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,10 +57,12 @@ class Instance:
 
     @property
     def n(self) -> int:
+        """Number of variables (poses or rotations) of the graph."""
         return self.graph.n
 
     @property
     def m(self) -> int:
+        """Number of measurements (edges) of the graph."""
         return self.graph.m
 
     def errors(self, estimate: LieGroup) -> evaluation.Errors:
