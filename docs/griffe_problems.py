@@ -39,7 +39,7 @@ def _resolve(obj: griffe.Object, target: str) -> str:
         target = target.lstrip(".")
         try:
             return scope.resolve(target.split(".")[0]) + target[len(target.split(".")[0]) :]  # type: ignore[union-attr]
-        except Exception:  # noqa: BLE001 — an unknown name stays as written
+        except Exception:
             return f"{obj.module.path}.{target}"
     head, _, rest = target.partition(".")
     for scope in (obj, obj.parent, obj.module):
@@ -47,7 +47,7 @@ def _resolve(obj: griffe.Object, target: str) -> str:
             continue
         try:
             return scope.resolve(head) + (f".{rest}" if rest else "")
-        except Exception:  # noqa: BLE001
+        except Exception:
             continue
     return target
 
