@@ -230,17 +230,20 @@ def to_quaternion(r: FloatArray) -> FloatArray:
     k = np.argmax(diag, axis=-1)
     s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
     d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
-    big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
-    # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
-    q = np.stack(
-        [
-            np.choose(k, [big, s01, s02, d21]),
-            np.choose(k, [s01, big, s12, d02]),
-            np.choose(k, [s02, s12, big, d10]),
-            np.choose(k, [d21, d02, d10, big]),
-        ],
-        axis=-1,
-    )
+    if (k == 3).all():  # every angle below ~2π/3 (residuals, steps): column w, no selection
+        q = np.stack([d21, d02, d10, 1.0 + diag[..., 3]], axis=-1)
+    else:
+        big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
+        # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
+        q = np.stack(
+            [
+                np.choose(k, [big, s01, s02, d21]),
+                np.choose(k, [s01, big, s12, d02]),
+                np.choose(k, [s02, s12, big, d10]),
+                np.choose(k, [d21, d02, d10, big]),
+            ],
+            axis=-1,
+        )
     n = q[..., 0] * q[..., 0]
     for i in (1, 2, 3):
         n += q[..., i] * q[..., i]
