@@ -143,6 +143,27 @@ def test_1_a_non_finite_residual_at_x0_names_the_factor_and_the_edge():
             make().solve(problem, x0)
 
 
+def test_1_a_nan_jacobian_at_x0_is_called_non_finite_not_a_singular_system():
+    """Audit: a nan Jacobian was reported as a singular system, with "fix the gauge" advice."""
+
+    def nan_jacobian(residual):
+        def wrapped(xi, xj, jac):
+            if not jac:
+                return residual(xi, xj, jac)
+            r, (ji, jj) = residual(xi, xj, True)
+            ji = ji.copy()
+            ji[3, 0, 0] = np.nan
+            return r, [ji, jj]
+
+        return wrapped
+
+    problem, _, x0 = chain(nan_jacobian)
+    for make in LEAST_SQUARES.values():
+        with pytest.raises(NonFiniteError, match="Jacobian") as error:
+            make().solve(problem, x0)
+        assert "gauge" not in str(error.value) and "singular" not in str(error.value).lower()
+
+
 @every_optimizer
 def test_1_a_gradient_turning_infinite_mid_run_never_reports_success(kind, make):
     """From the 4th gradient on, every gradient is infinite: the run must end on the last
