@@ -77,6 +77,6 @@ def test_ruff_check_passes():
 
 
 def test_mypy_passes():
-    # ~8 s with mypy's cache warm (as .ci/run leaves it), ~25 s cold.
+    # Under a second with mypy's cache warm (.ci/run's mypy step leaves it so), ~20 s cold.
     out = _tool("mypy", *MYPY.split()[1:], timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
