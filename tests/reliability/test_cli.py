@@ -143,11 +143,16 @@ def test_a_huge_suite_instance_is_refused_by_name(tmp_path: Path) -> None:
 # ---- interrupts and pipes ----------------------------------------------------------------
 
 
-def test_ctrl_c_exits_130_writes_nothing(cube: Path, tmp_path: Path) -> None:
+def test_ctrl_c_exits_130_writes_nothing(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> None:
     """Audit: Ctrl-C gave a traceback and no result."""
+    # A solve that cannot end before --max-time however fast the machine: steepest descent
+    # from the odometry start of a 1000-pose cube (it is still descending after 2 minutes).
+    cube = tmp_path_factory.mktemp("large") / "cube10.g2o"
+    graph = synthetic.cube(10, seed=5).graph
+    g2o.write(cube, graph, graph.odometry_initialization())
     out = tmp_path / "out.g2o"
     command = [sys.executable, "-m", "manopt_lie", "solve", cube, "--optimizer", "gd", "--max-iterations",
-               "1000000", "--max-time", "120", "--grad-rtol", "1e-15", "--out", out]  # fmt: skip
+               "1000000", "--max-time", "120", "--grad-rtol", "1e-15", "--init", "odometry", "--out", out]  # fmt: skip
     # Deep inside the solve: past the imports, the reading and the set-up, however long they
     # take on this machine (timed first by the same command stopped after one iteration).
     start = time.perf_counter()
