@@ -22,7 +22,7 @@ def matvec(m: FloatArray, v: FloatArray) -> FloatArray:
     return np.einsum("...ij,...j->...i", m, v)
 
 
-@_one.fast(_one.rotate_vectors, 2, 1)
+@_one.fast(_one.rotate_vectors, 2, 1, small=0)
 def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
     """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``)."""
     d = r.shape[-1]
@@ -50,7 +50,7 @@ def split(m: FloatArray) -> tuple[FloatArray, FloatArray]:
     return m[..., :d, :d], m[..., :d, d]
 
 
-@_one.fast(_one.h_compose, 2, 2, floats=False)
+@_one.fast(_one.h_compose, 2, 2, floats=False, small=0)
 def h_compose(a: FloatArray, b: FloatArray) -> FloatArray:
     """``[[Ra Rb, Ra tb + ta], [0, 1]]``."""
     ra, ta = split(a)
@@ -58,7 +58,7 @@ def h_compose(a: FloatArray, b: FloatArray) -> FloatArray:
     return assemble(ra @ rb, rotate_vectors(ra, tb) + ta)
 
 
-@_one.fast(_one.h_inverse, 2)
+@_one.fast(_one.h_inverse, 2, small=0)
 def h_inverse(m: FloatArray) -> FloatArray:
     """``[[Rᵀ, −Rᵀt], [0, 1]]``."""
     r, t = split(m)
@@ -66,7 +66,7 @@ def h_inverse(m: FloatArray) -> FloatArray:
     return assemble(rt, -rotate_vectors(rt, t))
 
 
-@_one.fast(_one.h_act, 2, 1)
+@_one.fast(_one.h_act, 2, 1, small=0)
 def h_act(m: FloatArray, p: FloatArray) -> FloatArray:
     """``R p + t``."""
     r, t = split(m)
@@ -140,7 +140,7 @@ def skew2(v: FloatArray) -> FloatArray:
     return np.stack([-v[..., 1], v[..., 0]], axis=-1)
 
 
-@_one.fast(_one.rotation2, 0)
+@_one.fast(_one.rotation2, 0, small=0)
 def rotation2(theta: FloatArray) -> FloatArray:
     """``[[cos θ, −sin θ], [sin θ, cos θ]]``."""
     c, s = np.cos(theta), np.sin(theta)
@@ -150,7 +150,7 @@ def rotation2(theta: FloatArray) -> FloatArray:
     return out
 
 
-@_one.fast(_one.angle2, 2)
+@_one.fast(_one.angle2, 2, small=0)
 def angle2(r: FloatArray) -> FloatArray:
     """Angle ``∈ (−π, π]`` of a planar rotation."""
     return np.arctan2(r[..., 1, 0], r[..., 0, 0])

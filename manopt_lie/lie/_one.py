@@ -47,17 +47,40 @@ def _batch_of_one(args: tuple[np.ndarray, ...], ndims: tuple[int, ...]) -> tuple
     return batch
 
 
+SMALL = 8
+"""Batches of at most this many elements go element by element through the twins: each costs
+a few µs on floats, while the array kernels pay ~1 µs per NumPy call whatever the size."""
+
+
+def _small_batch(args: tuple[np.ndarray, ...], ndims: tuple[int, ...], small: int) -> tuple[int, ...] | None:
+    """The batch shape if it has 2 to ``small`` elements and every argument either has it or
+    has no batch axes (no other broadcasting), else ``None``."""
+    batch: tuple[int, ...] | None = None
+    for a, k in zip(args, ndims, strict=True):
+        if a.ndim > k:
+            s = a.shape[: a.ndim - k]
+            if batch is None:
+                batch = s
+            elif s != batch:
+                return None
+    if batch is None:
+        return None
+    return batch if 1 < math.prod(batch) <= small else None
+
+
 def _rebatch(out: Any, batch: tuple[int, ...]) -> Any:
     if type(out) is tuple:
         return tuple(o.reshape(batch + o.shape) for o in out)
     return out.reshape(batch + out.shape)
 
 
-def fast(twin: Callable[..., Any], *ndims: int, floats: bool = True) -> Callable[[K], K]:
+def fast(twin: Callable[..., Any], *ndims: int, floats: bool = True, small: int = SMALL) -> Callable[[K], K]:
     """Decorate an array kernel whose argument ``i`` has ``ndims[i]`` trailing axes: one element goes
     to ``twin``, called with each argument's entries as a flat list of floats (``floats=False``: with
     the arrays, batch axes dropped). ``twin`` returns an array (or a tuple of arrays) without batch
-    axes, or ``None`` to leave the element to the kernel."""
+    axes, or ``None`` to leave the element to the kernel. Batches of up to ``small`` elements
+    (:func:`_small_batch`) go through ``twin`` element by element: worth it for the kernels of
+    many NumPy calls (series, Jacobians), not for a product (``small=0``)."""
 
     def prepare(a: np.ndarray, k: int) -> Any:
         if floats:
@@ -73,7 +96,27 @@ def fast(twin: Callable[..., Any], *ndims: int, floats: bool = True) -> Callable
                 out = twin(*[prepare(a, k) for a, k in zip(args, ndims, strict=True)])
                 if out is not None:
                     return _rebatch(out, batch) if batch else out
+                return kernel(*args)
+            batch = _small_batch(args, ndims, small)
+            if batch is not None:
+                out = _elementwise(args, batch)
+                if out is not None:
+                    return out
             return kernel(*args)
+
+        def _elementwise(args: tuple[np.ndarray, ...], batch: tuple[int, ...]) -> Any:
+            """The twin on each element of a small batch, stacked (``None`` if it declines one)."""
+            rows = [a.reshape((-1, *a.shape[a.ndim - k :])) if a.ndim > k else None
+                    for a, k in zip(args, ndims, strict=True)]  # fmt: skip
+            outs = []
+            for i in range(math.prod(batch)):
+                out = twin(*[prepare(a if r is None else r[i], k) for a, r, k in zip(args, rows, ndims, strict=True)])
+                if out is None:
+                    return None
+                outs.append(out)
+            if type(outs[0]) is tuple:
+                return tuple(np.stack(parts).reshape(batch + parts[0].shape) for parts in zip(*outs, strict=True))
+            return np.stack(outs).reshape(batch + outs[0].shape)
 
         if len(ndims) == 1:
             (k1,) = ndims

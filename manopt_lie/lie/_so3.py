@@ -29,7 +29,7 @@ def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     return _formulas.stack(list(_formulas.cross3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2])), 3)
 
 
-@_one.fast(_one.hat3, 1)
+@_one.fast(_one.hat3, 1, small=0)
 def hat(w: FloatArray) -> FloatArray:
     """``[w]×``."""
     x, y, z = w[..., 0], w[..., 1], w[..., 2]

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manopt_lie import SE2, SE3, SO2, SO3, NonFiniteError, ShapeError
-from manopt_lie.lie import _matrix, _se2, _se3, _series, _so3
+from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, NonFiniteError, ShapeError
+from manopt_lie.lie import _matrix, _one, _se2, _se3, _series, _so3
 
 # Across every series threshold (1e-4, 0.3, 0.5, 0.7), at π, and beyond.
 ANGLES = [0.0, 1e-12, 1e-8, 0.9e-4, 1.1e-4, 1e-3, 0.29, 0.31, 0.49, 0.51, 0.69, 0.71, 1.0, 2.5, np.pi - 1e-9, np.pi]
@@ -152,6 +152,31 @@ def test_public_operations_single_equal_batched(group, rng):
             pairs = zip(single, batched, strict=True) if isinstance(single, tuple) else [(single, batched)]
             for a, b in pairs:
                 np.testing.assert_allclose(a, b[i], rtol=0, atol=1e-15 * max(1.0, np.abs(b[i]).max()), err_msg=name)
+
+
+@pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
+def test_small_batches_element_by_element_equal_the_array_kernels(group, rng):
+    """Batches of 2 to ``_one.SMALL`` elements go through the twins one by one: bit for bit
+    what the array kernels give on a large batch holding them, shapes included."""
+    n = 4 * _one.SMALL
+    tau = rng.standard_normal((n, group.dim))
+    tau[::7] *= 1e-9  # small angles: the series branch too
+    x, y = group.exp(rng.standard_normal((n, group.dim))), group.exp(rng.standard_normal((n, group.dim)))
+    ops = {
+        "exp_jac": lambda x, y, t: group.exp(t, jac=True),
+        "log_jac": lambda x, y, t: x.log(jac=True),
+        "rminus_jac": lambda x, y, t: y.rminus(x, jac=True),
+        "rplus_jac": lambda x, y, t: x.rplus(t, jac=True),
+        "jacobians": lambda x, y, t: (group.jr(t), group.jl(t), group.jr_inv(t), group.jl_inv(t)),
+    }
+    for name, op in ops.items():
+        large = op(x, y, tau)
+        for size, shape in ((2, (2,)), (_one.SMALL, (_one.SMALL,)), (6, (2, 3))):
+            parts = op(x[:size].reshape(shape), y[:size].reshape(shape), tau[:size].reshape(shape + (group.dim,)))
+            for a, b in zip(parts, large, strict=True):
+                a, b = (v.data if isinstance(v, LieGroup) else v for v in (a, b))
+                assert a.shape == shape + b.shape[1:], name
+                same(a.reshape(b[:size].shape), b[:size])
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
