@@ -226,13 +226,16 @@ def to_quaternion(r: FloatArray) -> FloatArray:
     r00, r01, r02 = r[..., 0, 0], r[..., 0, 1], r[..., 0, 2]
     r10, r11, r12 = r[..., 1, 0], r[..., 1, 1], r[..., 1, 2]
     r20, r21, r22 = r[..., 2, 0], r[..., 2, 1], r[..., 2, 2]
-    diag = np.stack([r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22], -1)
-    k = np.argmax(diag, axis=-1)
-    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    d0, d1, d2, trace = r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22
     d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
-    if (k == 3).all():  # every angle below ~2π/3 (residuals, steps): column w, no selection
-        q = np.stack([d21, d02, d10, 1.0 + diag[..., 3]], axis=-1)
+    if ((trace > d0) & (trace > d1) & (trace > d2)).all():
+        # Every angle below ~2π/3 (residuals, steps): column w is the largest (strictly, as
+        # argmax would pick it), no selection.
+        q = np.stack([d21, d02, d10, 1.0 + trace], axis=-1)
     else:
+        diag = np.stack([d0, d1, d2, trace], -1)
+        k = np.argmax(diag, axis=-1)
+        s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
         big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
         # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
         q = np.stack(
