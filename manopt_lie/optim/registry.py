@@ -46,7 +46,7 @@ class OptimizerEntry:
     cls : type[Optimizer]
         The class :meth:`make` instantiates.
     summary : str
-        One line saying what it is, e.g. ``"Levenberg-Marquardt, Nielsen damping, sparse Cholesky"``.
+        One line saying what it is, e.g. ``"Levenberg-Marquardt, λ·I damping (GTSAM's update), sparse Cholesky"``.
     accepts : type[Problem]
         The problems it runs on: :class:`Problem` (any smooth problem with a
         gradient) or :class:`LeastSquaresProblem`.
@@ -127,7 +127,8 @@ for _entry in (
     OptimizerEntry("cg", ConjugateGradient, "Riemannian nonlinear CG (Hager-Zhang), strong Wolfe"),
     OptimizerEntry("gn", GaussNewton, "Gauss-Newton with line search, sparse Cholesky", LeastSquaresProblem),
     OptimizerEntry(
-        "lm", LevenbergMarquardt, "Levenberg-Marquardt, Nielsen damping, sparse Cholesky", LeastSquaresProblem
+        "lm", LevenbergMarquardt, "Levenberg-Marquardt, λ·I damping (GTSAM's update), sparse Cholesky",
+        LeastSquaresProblem,
     ),
     OptimizerEntry("tr", TrustRegion, "Riemannian trust region, truncated CG"),
     OptimizerEntry("lbfgs", LBFGS, "Riemannian limited-memory BFGS, cautious updates, strong Wolfe"),

@@ -34,7 +34,7 @@ def test_the_registered_optimizers():
     assert list(OPTIMIZERS) == ["gd", "cg", "gn", "lm", "tr", "lbfgs", "dogleg"]
     for name, entry in OPTIMIZERS.items():
         assert entry.name == name and get_optimizer(name) is entry
-    assert get_optimizer("lm").summary == "Levenberg-Marquardt, Nielsen damping, sparse Cholesky"
+    assert get_optimizer("lm").summary == "Levenberg-Marquardt, λ·I damping (GTSAM's update), sparse Cholesky"
     assert {n for n, e in OPTIMIZERS.items() if e.accepts is LeastSquaresProblem} == {"gn", "lm", "dogleg"}
 
 
