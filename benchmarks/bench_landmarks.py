@@ -28,7 +28,7 @@ from manopt_lie import SE2, SE3
 from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import interleaved
 from manopt_lie.factors import Diagonal, Information, between_factor, range_bearing_factor
-from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power
+from manopt_lie.manifolds import Blocks
 from manopt_lie.optim import LeastSquaresProblem, LevenbergMarquardt, marginal_covariances
 from manopt_lie.problems import synthetic
 
@@ -58,8 +58,7 @@ def ours(w: dict[str, Any]) -> tuple[LeastSquaresProblem, Any]:
     """Our problem on Blocks(poses, landmarks) and the initial values."""
     graph, d = w["graph"], w["d"]
     pg = graph.poses
-    manifold = Blocks({"poses": Power(LieGroupManifold(pg.group), pg.n),
-                       "landmarks": Power(Euclidean(d), graph.n_landmarks)})  # fmt: skip
+    manifold = graph.manifold  # poses retracted as GTSAM's: (R Exp(θ), t + Rρ)
     sigmas = [SIGMA_RANGE, SIGMA_BEARING] + ([SIGMA_BEARING] if d == 3 else [])
     factors = [
         between_factor(pg.edges, pg.measurements, Information(pg.information), name="odometry", blocks="poses"),

@@ -202,8 +202,13 @@ class LandmarkGraph(Graph):
     @property
     def manifold(self) -> Blocks:
         """``Blocks(poses=Power(SE(d), n), landmarks=Power(Euclidean(d), L))`` (without the
-        landmarks block when there are none: a pose graph with priors)."""
-        blocks = {"poses": Power(LieGroupManifold(self.group), self.n)}
+        landmarks block when there are none: a pose graph with priors). The poses retract
+        by ``(R Exp(θ), t + Rρ)`` (``geometry="decoupled"``, GTSAM's Pose retraction): the
+        same tangent coordinates and Jacobians as ``X Exp(τ)``, but long steps from a poor
+        start (odometry composed over thousands of poses) move positions along straight
+        lines; with ``X Exp(τ)`` LM needed over 1000 iterations on a 5000-pose 3-D world
+        that it now solves in 33 (``benchmarks/bench_landmarks.py``)."""
+        blocks = {"poses": Power(LieGroupManifold(self.group, geometry="decoupled"), self.n)}
         if self.n_landmarks:
             blocks["landmarks"] = Power(Euclidean(self.d), self.n_landmarks)
         return Blocks(blocks)

@@ -18,6 +18,14 @@ generators and ``hat*(M)ᵢ = ⟨Eᵢ, M⟩_F`` the adjoint of ``hat``:
 ``R_{(R,t)}(ρ, θ) = (R Exp(θ), t + ρ)`` with the translation increment in the
 world frame; the formulas above then apply to the rotation block, and the
 translation block is Euclidean.
+
+``geometry="decoupled"`` keeps the group's tangent coordinates and metric but retracts
+rotation and translation apart, ``R_{(R,t)}(ρ, θ) = (R Exp(θ), t + Rρ)`` (GTSAM's Pose3
+retraction): its differential at 0 is that of ``X Exp(τ)``, so gradients and every right
+Jacobian apply unchanged, while a long step moves the translation along a straight line
+instead of the screw of ``Exp``, which keeps least squares from poor starts (landmark
+SLAM from composed odometry) converging. Its pullback's curvature is the rotation
+block's only: ``∂²/∂θᵢ∂θⱼ = R(EᵢEⱼ + EⱼEᵢ)/2``, nothing in ``ρ``.
 """
 
 from __future__ import annotations
@@ -70,25 +78,31 @@ class LieGroupManifold(Manifold):
     Parameters
     ----------
     group : SO2, SO3, SE2, SE3 or Rn(n)
-    geometry : {"group", "product"}
+    geometry : {"group", "product", "decoupled"}
         ``"product"`` (SE2, SE3 only) uses SO(n) × Rⁿ: translation increments in
-        the world frame.
+        the world frame. ``"decoupled"`` (SE2, SE3 only): the group's coordinates,
+        retracted by ``(R Exp(θ), t + Rρ)`` (see the module doc).
     """
 
     def __init__(self, group: type[LieGroup], geometry: str = "group") -> None:
         if not (isinstance(group, type) and issubclass(group, LieGroup)):
             raise TypeError(f"LieGroupManifold: expected a LieGroup class such as SO3, got {group!r}")
-        if geometry not in ("group", "product"):
-            raise ValueError(f"LieGroupManifold: geometry must be 'group' or 'product', got {geometry!r}")
-        if geometry == "product" and group not in (SE2, SE3):
-            raise ValueError("LieGroupManifold: the product geometry is for SE2 and SE3")
+        if geometry not in ("group", "product", "decoupled"):
+            raise ValueError(
+                f"LieGroupManifold: geometry must be 'group', 'product' or 'decoupled', got {geometry!r}"
+            )
+        if geometry != "group" and group not in (SE2, SE3):
+            raise ValueError(f"LieGroupManifold: the {geometry} geometry is for SE2 and SE3")
         self.group = group
         self.geometry = geometry
+        self._embedded = geometry != "product"  # the group's tangent coordinates X τ^
         self._euclidean = issubclass(group, RnGroup)  # Rⁿ's ambient space is Rⁿ itself
-        self._algebra = _Algebra(group.rotation_group if geometry == "product" else group)  # type: ignore[attr-defined]
+        self._algebra = _Algebra(group if self._embedded else group.rotation_group)  # type: ignore[attr-defined]
+        if geometry == "decoupled":
+            self._rotations = _Algebra(group.rotation_group)  # type: ignore[attr-defined]
 
     def __repr__(self) -> str:
-        extra = ", geometry='product'" if self.geometry == "product" else ""
+        extra = "" if self.geometry == "group" else f", geometry={self.geometry!r}"
         return f"LieGroupManifold({self.group.__name__}{extra})"
 
     @property
@@ -107,7 +121,8 @@ class LieGroupManifold(Manifold):
             return x.rplus(v)
         r, t = x.rotation(), x.translation()  # type: ignore[attr-defined]
         d = self.group.point_dim
-        return self.group._wrap(assemble(r.rplus(v[..., d:]).as_matrix(), t + v[..., :d]))
+        step = v[..., :d] if self.geometry == "product" else r.act(v[..., :d])
+        return self.group._wrap(assemble(r.rplus(v[..., d:]).as_matrix(), t + step))
 
     exp = retr
 
@@ -115,7 +130,10 @@ class LieGroupManifold(Manifold):
         if self.geometry == "group":
             return y.rminus(x)
         rot = y.rotation().rminus(x.rotation())  # type: ignore[attr-defined]
-        return np.concatenate([y.translation() - x.translation(), rot], axis=-1)  # type: ignore[attr-defined]
+        shift = y.translation() - x.translation()  # type: ignore[attr-defined]
+        if self.geometry == "decoupled":
+            shift = x.rotation().inverse().act(shift)  # type: ignore[attr-defined]
+        return np.concatenate([shift, rot], axis=-1)
 
     def dist(self, x: LieGroup, y: LieGroup) -> Any:
         return np.linalg.norm(self.log(x, y), axis=-1)
@@ -133,7 +151,7 @@ class LieGroupManifold(Manifold):
         """``X v^`` (product geometry: ``[[R θ^, ρ], [0, 0]]``; Rⁿ: ``v``)."""
         if self._euclidean:
             return v
-        if self.geometry == "group":
+        if self._embedded:
             return x.as_matrix() @ self.group.hat(v)
         d = self.group.point_dim
         r, _ = split(x.as_matrix())
@@ -149,7 +167,7 @@ class LieGroupManifold(Manifold):
         """``to_coordinates(Xᵀ A)`` (product geometry: ``(A_t, to_coordinates(Rᵀ A_R))``)."""
         if self._euclidean:
             return a
-        if self.geometry == "group":
+        if self._embedded:
             return to_coordinates(_t(x.as_matrix()) @ a)
         r, _ = split(x.as_matrix())
         a_r, a_t = self._split_rotation(a)
@@ -168,9 +186,17 @@ class LieGroupManifold(Manifold):
         if self.geometry == "group":
             xt = _t(x.as_matrix())
             return self._algebra.grad_and_hess(xt @ g, xt @ h, v)
+        d = self.group.point_dim
+        if self.geometry == "decoupled":  # the group's first term, the rotation block's curvature
+            xt = _t(x.as_matrix())
+            out = self._algebra.adjoint_hat(xt @ h)
+            rt = _t(split(x.as_matrix())[0])
+            m = rt @ self._split_rotation(g)[0]
+            vh = self._rotations.hat(v[..., d:])
+            out[..., d:] += 0.5 * self._rotations.adjoint_hat(m @ _t(vh) + _t(vh) @ m)
+            return out
         rt = _t(split(x.as_matrix())[0])
         (g_r, _), (h_r, h_t) = self._split_rotation(g), self._split_rotation(h)
-        d = self.group.point_dim
         return np.concatenate([h_t, self._algebra.grad_and_hess(rt @ g_r, rt @ h_r, v[..., d:])], axis=-1)
 
     # ---- points and tangents -----------------------------------------------------

@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from manopt_lie import SE2, SE3, SO2, SO3
-from manopt_lie.manifolds import Blocks, Euclidean, LieGroupManifold, Power
 
 from ..landmarks import LandmarkGraph
 from ..pose_graph import PoseGraph
@@ -191,6 +190,5 @@ def landmark_world(
         point_information=point_info, prior_poses=priors, prior_means=prior_mean,
         prior_information=information[:1] if prior else None, name=poses.name,
     )  # fmt: skip
-    manifold = Blocks({"poses": Power(LieGroupManifold(group), n), "landmarks": Power(Euclidean(d), count)})
-    values = manifold.values(poses=truth, landmarks=points)
+    values = graph.manifold.values(poses=truth, landmarks=points)
     return Instance(graph, values, outliers, params, np.ones(n - 1, dtype=bool))  # type: ignore[arg-type]

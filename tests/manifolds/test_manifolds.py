@@ -42,6 +42,9 @@ CASES: list[tuple[Manifold, str]] = [
     *[(LieGroupManifold(g), "pullback") for g in (SO2, SO3, SE2, SE3, Rn(3))],
     (LieGroupManifold(SE2, geometry="product"), "pullback"),
     (LieGroupManifold(SE3, geometry="product"), "pullback"),
+    (LieGroupManifold(SE2, geometry="decoupled"), "pullback"),
+    (LieGroupManifold(SE3, geometry="decoupled"), "pullback"),
+    (Power(LieGroupManifold(SE3, geometry="decoupled"), 3), "pullback"),
     (Power(Sphere(3), 4), "gradient"),
     (Power(LieGroupManifold(SO3), 5), "pullback"),
     (Power(LieGroupManifold(SE3), (2, 3)), "pullback"),
@@ -351,6 +354,33 @@ def test_geometries_of_se3_differ_only_in_the_translation_frame():
     np.testing.assert_allclose(product.retr(x, v).translation(), x.translation() + v[:3])
     w = np.r_[0.0, 0.0, 0.0, 0.1, -0.2, 0.3]
     np.testing.assert_allclose(group.retr(x, w).as_matrix(), product.retr(x, w).as_matrix(), atol=1e-15)
+
+
+@pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
+def test_the_decoupled_retraction_moves_positions_along_straight_lines(group):
+    """``(R Exp(θ), t + Rρ)``: the group's coordinates to first order (every right Jacobian
+    applies), the translation moved by ``Rρ`` whatever the rotation step, and ``log`` its inverse."""
+    decoupled, plain = LieGroupManifold(group, geometry="decoupled"), LieGroupManifold(group)
+    x = group.random(0)
+    d = group.point_dim
+    v = np.random.default_rng(1).standard_normal(group.dim)
+    v[:d] *= 10.0  # a long step, the rotation below π (so that log inverts it)
+    v[d:] *= 2.5 / np.linalg.norm(v[d:])
+    y = decoupled.retr(x, v)
+    np.testing.assert_allclose(y.translation(), x.translation() + x.rotation().act(v[:d]), atol=1e-12)
+    np.testing.assert_allclose(y.rotation().as_matrix(), x.rotation().rplus(v[d:]).as_matrix(), atol=1e-12)
+    np.testing.assert_allclose(decoupled.log(x, y), v, atol=1e-10)
+    for h in (1e-4, 1e-5):  # the same curve as X·Exp(τ) to first order
+        gap = decoupled.retr(x, h * v).as_matrix() - plain.retr(x, h * v).as_matrix()
+        assert np.abs(gap).max() < 10 * h * h * np.dot(v, v)
+    assert repr(decoupled) == f"LieGroupManifold({group.__name__}, geometry='decoupled')"
+
+
+def test_landmark_graphs_retract_poses_decoupled():
+    from manopt_lie.problems import synthetic
+
+    graph = synthetic.landmark_world(20, 5, seed=0).graph
+    assert "geometry='decoupled'" in repr(graph.manifold)
 
 
 # ---- errors -----------------------------------------------------------------------
