@@ -330,16 +330,16 @@ class SymSO3(_SymRotation):
         return cls._element(x)
 
 
-class _SymTransform(SymbolicGroup):
-    """SE(n): ``[[R, t], [0, 1]]`` handled by blocks, the last row always constant."""
+class _SymHomogeneous(SymbolicGroup):
+    """Homogeneous matrices ``[[M, t], [0, 1]]`` handled by blocks, the last row always
+    constant: SE(n) (``M = R``) and Sim(n) (``M = sR``, in :mod:`.lie_extended`)."""
 
-    rotation: ClassVar[type[SymbolicGroup]]
     point_dim: ClassVar[int]
 
     @classmethod
-    def _assemble(cls, r: Matrix, t: Matrix) -> Matrix:
+    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
         last = ca.horzcat(ca.DM.zeros(1, cls.point_dim), ca.DM.ones(1, 1))
-        return ca.vertcat(ca.horzcat(r, t), last)
+        return ca.vertcat(ca.horzcat(m, t), last)
 
     @classmethod
     def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
@@ -348,8 +348,27 @@ class _SymTransform(SymbolicGroup):
 
     @classmethod
     def from_matrix(cls, m: Any) -> Matrix:
-        """``[[R, t], [0, 1]]`` from the blocks of ``m`` (its last row is replaced by constants)."""
+        """``[[M, t], [0, 1]]`` from the blocks of ``m`` (its last row is replaced by constants)."""
         return cls._assemble(*cls._split(m, "m"))
+
+    @classmethod
+    def compose(cls, x: Any, y: Any) -> Matrix:
+        """``[[Ma Mb, Ma tb + ta], [0, 1]]``."""
+        ma, ta = cls._split(x, "X")
+        mb, tb = cls._split(y, "Y")
+        return cls._assemble(ca.mtimes(ma, mb), ca.mtimes(ma, tb) + ta)
+
+    @classmethod
+    def act(cls, x: Any, p: Any) -> Matrix:
+        """``M p + t``."""
+        m, t = cls._split(x)
+        return ca.mtimes(m, _column(p, cls.point_dim, "p")) + t
+
+
+class _SymTransform(_SymHomogeneous):
+    """SE(n): ``[[R, t], [0, 1]]``."""
+
+    rotation: ClassVar[type[SymbolicGroup]]
 
     @classmethod
     def from_rotation_translation(cls, r: Any, t: Any) -> Matrix:
@@ -367,23 +386,10 @@ class _SymTransform(SymbolicGroup):
         return cls._split(x)[1]
 
     @classmethod
-    def compose(cls, x: Any, y: Any) -> Matrix:
-        """``[[Ra Rb, Ra tb + ta], [0, 1]]``."""
-        ra, ta = cls._split(x, "X")
-        rb, tb = cls._split(y, "Y")
-        return cls._assemble(ca.mtimes(ra, rb), ca.mtimes(ra, tb) + ta)
-
-    @classmethod
     def inverse(cls, x: Any) -> Matrix:
         """``[[Rᵀ, −Rᵀt], [0, 1]]``."""
         r, t = cls._split(x)
         return cls._assemble(r.T, -ca.mtimes(r.T, t))
-
-    @classmethod
-    def act(cls, x: Any, p: Any) -> Matrix:
-        """``R p + t``."""
-        r, t = cls._split(x)
-        return ca.mtimes(r, _column(p, cls.point_dim, "p")) + t
 
 
 class SymSE2(_SymTransform):

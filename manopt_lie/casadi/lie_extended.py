@@ -15,7 +15,20 @@ from typing import Any, ClassVar
 import casadi as ca
 
 from ..lie import S3, SE23, BundleGroup, LieGroup, RnGroup, Sim2, Sim3, _series
-from .lie import CASADI, Matrix, SymbolicGroup, SymSO3, _column, _so3_exp, _so3_log, _square, cosc, jinv_coef, sinc3
+from .lie import (
+    CASADI,
+    Matrix,
+    SymbolicGroup,
+    SymSO3,
+    _column,
+    _so3_exp,
+    _so3_log,
+    _square,
+    _SymHomogeneous,
+    cosc,
+    jinv_coef,
+    sinc3,
+)
 
 __all__ = ["SymSim3", "SymSim2", "SymSE23", "SymS3", "sym_rn", "sym_bundle"]
 
@@ -31,23 +44,16 @@ def _jl_inv_apply(theta: Matrix, v: Matrix) -> Matrix:
     return v - 0.5 * wv + jinv_coef(ca.sumsqr(theta)) * ca.cross(theta, wv)
 
 
-class _SymSimilarity(SymbolicGroup):
-    """Sim(3) and Sim(2)'s storage ``[[s·R, t], [0, 1]]`` of size ``size``."""
+class _SymSimilarity(_SymHomogeneous):
+    """Sim(3) and Sim(2): ``[[sR, t], [0, 1]]`` (the blocks, product and action of
+    :class:`~.lie._SymHomogeneous`); ``(sR)⁻¹ = (sR)ᵀ/s²``."""
 
     @classmethod
-    def _split(cls, x: Any, name: str = "X") -> tuple[Matrix, Matrix]:
-        a = cls._element(x, name)
-        d = cls.size - 1
-        return a[:d, :d], a[:d, d]
-
-    @classmethod
-    def _assemble(cls, m: Matrix, t: Matrix) -> Matrix:
-        d = cls.size - 1
-        return ca.vertcat(ca.horzcat(m, t), ca.horzcat(ca.DM.zeros(1, d), ca.DM.ones(1, 1)))
-
-    @classmethod
-    def from_matrix(cls, m: Any) -> Matrix:
-        return cls._assemble(*cls._split(m, "m"))
+    def inverse(cls, x: Any) -> Matrix:
+        """``[[(sR)ᵀ/s², −(sR)ᵀt/s²], [0, 1]]``."""
+        m, t = cls._split(x)
+        mi = m.T / ca.sumsqr(m[:, 0])
+        return cls._assemble(mi, -ca.mtimes(mi, t))
 
 
 class SymSim3(_SymSimilarity):
@@ -56,6 +62,7 @@ class SymSim3(_SymSimilarity):
     group = Sim3
     dim = 7
     size = 4
+    point_dim = 3
 
     @classmethod
     def exp(cls, tau: Any) -> Matrix:
@@ -88,23 +95,6 @@ class SymSim3(_SymSimilarity):
         return ca.vertcat(a[:3, 3], ca.inv_skew(a[:3, :3]), ca.trace(a[:3, :3]) / 3.0)
 
     @classmethod
-    def compose(cls, x: Any, y: Any) -> Matrix:
-        ma, ta = cls._split(x, "X")
-        mb, tb = cls._split(y, "Y")
-        return cls._assemble(ca.mtimes(ma, mb), ca.mtimes(ma, tb) + ta)
-
-    @classmethod
-    def inverse(cls, x: Any) -> Matrix:
-        m, t = cls._split(x)
-        mi = m.T / ca.sumsqr(m[:, 0])
-        return cls._assemble(mi, -ca.mtimes(mi, t))
-
-    @classmethod
-    def act(cls, x: Any, p: Any) -> Matrix:
-        m, t = cls._split(x)
-        return ca.mtimes(m, _column(p, 3, "p")) + t
-
-    @classmethod
     def adjoint(cls, x: Any) -> Matrix:
         """``[[sR, [t]× R, −t], [0, R, 0], [0, 0, 1]]``."""
         m, t = cls._split(x)
@@ -120,6 +110,7 @@ class SymSim2(_SymSimilarity):
     group = Sim2
     dim = 4
     size = 3
+    point_dim = 2
 
     @staticmethod
     def _w(sigma: Matrix, theta: Matrix) -> tuple[Matrix, Matrix]:
@@ -156,23 +147,6 @@ class SymSim2(_SymSimilarity):
     def vee(cls, m: Any) -> Matrix:
         a = _square(m, 3, "M")
         return ca.vertcat(a[0, 2], a[1, 2], 0.5 * (a[1, 0] - a[0, 1]), 0.5 * (a[0, 0] + a[1, 1]))
-
-    @classmethod
-    def compose(cls, x: Any, y: Any) -> Matrix:
-        ma, ta = cls._split(x, "X")
-        mb, tb = cls._split(y, "Y")
-        return cls._assemble(ca.mtimes(ma, mb), ca.mtimes(ma, tb) + ta)
-
-    @classmethod
-    def inverse(cls, x: Any) -> Matrix:
-        m, t = cls._split(x)
-        mi = m.T / ca.sumsqr(m[:, 0])
-        return cls._assemble(mi, -ca.mtimes(mi, t))
-
-    @classmethod
-    def act(cls, x: Any, p: Any) -> Matrix:
-        m, t = cls._split(x)
-        return ca.mtimes(m, _column(p, 2, "p")) + t
 
     @classmethod
     def adjoint(cls, x: Any) -> Matrix:
