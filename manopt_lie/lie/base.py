@@ -488,4 +488,10 @@ class LieGroup:
 
     _exp = _log = _compose = _inverse = _act = _act_jac = _adjoint = staticmethod(_unsupplied)
     _jr = _jr_inv = _hat = _vee = staticmethod(_unsupplied)
-    _identity = _random = _validated = _project = classmethod(_unsupplied)
+    _random = _validated = _project = classmethod(_unsupplied)
+
+    @classmethod
+    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
+        """The identity matrix, for the groups stored as square matrices (the others override it)."""
+        n = cls.storage_shape[-1]
+        return np.array(np.broadcast_to(np.eye(n), batch + (n, n)))

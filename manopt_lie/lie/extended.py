@@ -65,11 +65,6 @@ class _Similarity(LieGroup):
         return out
 
     @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        n = cls.point_dim + 1
-        return np.array(np.broadcast_to(np.eye(n), batch + (n, n)))
-
-    @classmethod
     def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
         """Random rotations (Haar), ``t ~ N(0, I)``, ``σ ~ N(0, 1)``."""
         r = cls._rotations._random(rng, batch) * np.exp(rng.standard_normal(batch))[..., None, None]
@@ -196,10 +191,6 @@ class SE23(LieGroup):
     _jr_inv = staticmethod(_se23.jr_inv)
     _hat = staticmethod(_se23.hat)
     _vee = staticmethod(_se23.vee)
-
-    @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        return np.array(np.broadcast_to(np.eye(5), batch + (5, 5)))
 
     @classmethod
     def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:

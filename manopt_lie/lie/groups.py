@@ -41,10 +41,6 @@ class _RotationGroup(LieGroup):
         return np.swapaxes(a, -1, -2)
 
     @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        return np.array(np.broadcast_to(np.eye(cls.point_dim), batch + cls.storage_shape))
-
-    @classmethod
     def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
         _matrix.check_rotation(a, tol, name)
         return _matrix.polish_rotation(a)
@@ -63,10 +59,6 @@ class _TransformGroup(LieGroup):
     _compose = staticmethod(_matrix.h_compose)
     _inverse = staticmethod(_matrix.h_inverse)
     _act = staticmethod(_matrix.h_act)
-
-    @classmethod
-    def _identity(cls, batch: tuple[int, ...]) -> FloatArray:
-        return np.array(np.broadcast_to(np.eye(cls.point_dim + 1), batch + cls.storage_shape))
 
     @classmethod
     def _random(cls, rng: np.random.Generator, batch: tuple[int, ...]) -> FloatArray:
