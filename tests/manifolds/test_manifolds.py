@@ -409,6 +409,7 @@ def test_constructor_errors_and_missing_operations():
         lambda: Euclidean(0),
         lambda: Power(Sphere(3), 0),
         lambda: LieGroupManifold(SO3, geometry="product"),
+        lambda: LieGroupManifold(SO3, geometry="decoupled"),
         lambda: LieGroupManifold(SE3, geometry="x"),
     ):
         with pytest.raises(ValueError):
