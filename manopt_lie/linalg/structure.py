@@ -38,8 +38,10 @@ FloatArray = NDArray[np.float64]
 # (indptr, indices, per-factor gathers into the blocks, per-factor start in J.data)
 _JacobianPattern = tuple[NDArray[np.signedinteger], NDArray[np.signedinteger], list[IntArray], IntArray]
 
-CHUNK = 1 << 20
-"""Products per chunk of :meth:`BlockStructure.normal_equations` (8 MiB of float64)."""
+CHUNK = 1 << 17
+"""Products per chunk of :meth:`BlockStructure.normal_equations` (1 MiB of float64): as fast as
+8 MiB chunks from 10⁴ to 10⁵ poses, and 10 MB less resident memory on a 10⁴-pose cube
+(``benchmarks/bench_scaling.py``)."""
 
 
 class BlockStructure:
