@@ -51,6 +51,11 @@ SMALL = 8
 """Batches of at most this many elements go element by element through the twins: each costs
 a few µs on floats, while the array kernels pay ~1 µs per NumPy call whatever the size."""
 
+SMALL_JACOBIAN = 16
+"""The same for the kernels of SE(3) and the Jacobians of SE(2), a few hundred NumPy calls each:
+element by element they stay faster up to ~16–20 elements (SE(3) ``Log`` 1.4×, ``Jr⁻¹`` 1.5× at
+12 elements), the rotations' and SE(2)'s ``Exp``/``Log`` only up to ~10."""
+
 
 def _small_batch(args: tuple[np.ndarray, ...], ndims: tuple[int, ...], small: int) -> tuple[int, ...] | None:
     """The batch shape if it has 2 to ``small`` elements and every argument either has it or

@@ -70,7 +70,7 @@ def adjoint(m: FloatArray) -> FloatArray:
     return out
 
 
-@_one.fast(_one.se2_jr, 1)
+@_one.fast(_one.se2_jr, 1, small=_one.SMALL_JACOBIAN)
 @_quiet
 def jr(tau: FloatArray) -> FloatArray:
     """Right Jacobian::
@@ -91,7 +91,7 @@ def jr(tau: FloatArray) -> FloatArray:
     return out
 
 
-@_one.fast(_one.se2_jr_inv, 1)
+@_one.fast(_one.se2_jr_inv, 1, small=_one.SMALL_JACOBIAN)
 @_quiet
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[M⁻¹, −M⁻¹ w], [0, 1]]`` of ``Jr = [[M, w], [0, 1]]``, with

@@ -24,14 +24,14 @@ def vee(m: FloatArray) -> FloatArray:
     return np.concatenate([m[..., :3, 3], _so3.vee(m[..., :3, :3])], axis=-1)
 
 
-@_one.fast(_one.se3_exp, 1)
+@_one.fast(_one.se3_exp, 1, small=_one.SMALL_JACOBIAN)
 def exp(tau: FloatArray) -> FloatArray:
     """``[[Exp(θ), Jl(θ) ρ], [0, 1]]``."""
     rho, theta = tau[..., :3], tau[..., 3:]
     return _matrix.assemble(_so3.exp(theta), _so3.jl_apply(theta, rho))
 
 
-@_one.fast(_one.se3_log, 2)
+@_one.fast(_one.se3_log, 2, small=_one.SMALL_JACOBIAN)
 def log(m: FloatArray) -> FloatArray:
     """``(Jl(θ)⁻¹ t, θ)`` with ``θ = Log(R)``."""
     r, t = _matrix.split(m)
@@ -65,7 +65,7 @@ def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return _formulas.dot3(a[..., 0], a[..., 1], a[..., 2], b[..., 0], b[..., 1], b[..., 2])
 
 
-@_one.fast(_one.q_matrix, 1, 1)
+@_one.fast(_one.q_matrix, 1, 1, small=_one.SMALL_JACOBIAN)
 @_so3.scale_safe(_q_matrix_huge, angle=1)
 def q_matrix(rho: FloatArray, theta: FloatArray) -> FloatArray:
     """Barfoot's ``Q(ρ, θ)``, the top-right block of ``Jl(ρ, θ)`` (Solà eq. 180)::
@@ -123,14 +123,14 @@ def _jacobian(tau: FloatArray, inverse: bool) -> FloatArray:
     return _block_upper(_formulas.stack(diagonal, 3, 3), _formulas.stack(corner, 3, 3))
 
 
-@_one.fast(_one.se3_jr, 1)
+@_one.fast(_one.se3_jr, 1, small=_one.SMALL_JACOBIAN)
 @_so3.scale_safe(_jr_blocks, part=slice(3, 6))
 def jr(tau: FloatArray) -> FloatArray:
     """``Jr(ρ, θ) = [[Jr(θ), Q(−ρ, −θ)], [0, Jr(θ)]]`` (eq. 179), entry by entry."""
     return _jacobian(tau, False)
 
 
-@_one.fast(_one.se3_jr_inv, 1)
+@_one.fast(_one.se3_jr_inv, 1, small=_one.SMALL_JACOBIAN)
 @_so3.scale_safe(lambda tau: _jr_blocks(tau, True), part=slice(3, 6))
 def jr_inv(tau: FloatArray) -> FloatArray:
     """``Jr⁻¹ = [[Jr(θ)⁻¹, −Jr(θ)⁻¹ Q Jr(θ)⁻¹], [0, Jr(θ)⁻¹]]`` with ``Q = Q(−ρ, −θ)``, entry by entry."""

@@ -156,9 +156,9 @@ def test_public_operations_single_equal_batched(group, rng):
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
 def test_small_batches_element_by_element_equal_the_array_kernels(group, rng):
-    """Batches of 2 to ``_one.SMALL`` elements go through the twins one by one: bit for bit
-    what the array kernels give on a large batch holding them, shapes included."""
-    n = 4 * _one.SMALL
+    """Batches of 2 to ``_one.SMALL`` (``_one.SMALL_JACOBIAN``) elements go through the twins one
+    by one: bit for bit what the array kernels give on a large batch holding them, shapes included."""
+    n = 4 * _one.SMALL_JACOBIAN
     tau = rng.standard_normal((n, group.dim))
     tau[::7] *= 1e-9  # small angles: the series branch too
     x, y = group.exp(rng.standard_normal((n, group.dim))), group.exp(rng.standard_normal((n, group.dim)))
@@ -171,7 +171,8 @@ def test_small_batches_element_by_element_equal_the_array_kernels(group, rng):
     }
     for name, op in ops.items():
         large = op(x, y, tau)
-        for size, shape in ((2, (2,)), (_one.SMALL, (_one.SMALL,)), (6, (2, 3))):
+        sizes = (2, _one.SMALL, _one.SMALL + 1, _one.SMALL_JACOBIAN, _one.SMALL_JACOBIAN + 1)
+        for size, shape in [(k, (k,)) for k in sizes] + [(6, (2, 3))]:
             parts = op(x[:size].reshape(shape), y[:size].reshape(shape), tau[:size].reshape(shape + (group.dim,)))
             for a, b in zip(parts, large, strict=True):
                 a, b = (v.data if isinstance(v, LieGroup) else v for v in (a, b))
