@@ -316,7 +316,7 @@ class BlockStructure:
         self,
         blocks: Sequence[ArrayLike],
         residuals: Sequence[ArrayLike],
-        weights: Sequence[ArrayLike] | None = None,
+        weights: Sequence[ArrayLike | None] | None = None,
     ) -> tuple[sp.csc_matrix, FloatArray]:
         """Gauss-Newton normal equations ``H = JᵀWJ`` and ``g = JᵀWr``.
 
@@ -334,9 +334,9 @@ class BlockStructure:
             Per factor type, the edges' Jacobians (see :meth:`jacobian`).
         residuals : sequence of array_like, shape (m_k, r_k)
             Per factor type, the edges' residuals.
-        weights : sequence of array_like, shape (m_k,), optional
+        weights : sequence of array_like or None, shape (m_k,), optional
             Per factor type, a scalar weight per edge (e.g. IRLS weights of a
-            robust loss); ``None`` (the default) means ``W = I``.
+            robust loss), or ``None`` for weights 1; ``None`` (the default) means ``W = I``.
 
         Returns
         -------
@@ -363,7 +363,7 @@ class BlockStructure:
             if r.shape != (f.m, f.residual_dim):
                 raise ShapeError(f"residuals[{k}]: expected shape {(f.m, f.residual_dim)}, got {r.shape}")
             w = None
-            if weights is not None:
+            if weights is not None and weights[k] is not None:
                 w = np.asarray(weights[k], dtype=np.float64)
                 if w.shape != (f.m,):
                     raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")

@@ -240,8 +240,8 @@ class LeastSquaresProblem(Problem):
     """
 
     __slots__ = (
-        "_build_lock", "_exact_hessian", "_factors", "_fixed", "_layout", "_residual_dims", "_slots", "_structure",
-        "_variables",
+        "_build_lock", "_exact_hessian", "_factors", "_fixed", "_fixed_columns", "_fixed_diagonal", "_layout",
+        "_residual_dims", "_slots", "_structure", "_variables",
     )  # fmt: skip
 
     def __init__(
@@ -259,6 +259,11 @@ class LeastSquaresProblem(Problem):
         self._slots = tuple(self._layout.slots(f) for f in self._factors)
         self._variables = tuple(self._layout.global_variables(f) for f in self._factors)
         self._fixed = self._layout.fixed_mask(fixed)
+        # Where the fixed variables sit, found once: per factor the (edges, first column, end
+        # column) of their Jacobian columns, and the 1s they get on the diagonal of H.
+        self._fixed_columns = tuple(self._fixed_slots(k) for k in range(len(self._factors)))
+        self._fixed_diagonal = (np.repeat(self._fixed, self._layout.dims).astype(np.float64)
+                                if self._fixed.any() else None)  # fmt: skip
         self._structure: BlockStructure | None = None
         self._residual_dims: tuple[int, ...] | None = None
         self._build_lock = threading.Lock()
@@ -338,27 +343,34 @@ class LeastSquaresProblem(Problem):
             residuals.append(r)
             weights.append(f.robust_loss.weight(s))
         structure = self._structure or self._build_structure(residuals)
-        h, g = structure.normal_equations(blocks, residuals, weights)
-        if self._fixed.any():  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
-            h = structure.add_diagonal(h, np.repeat(self._fixed, self._layout.dims).astype(np.float64), inplace=True)
+        # Plain least squares weighs every edge by 1: the assembly skips the product.
+        scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
+        h, g = structure.normal_equations(blocks, residuals, scaling)
+        if self._fixed_diagonal is not None:  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
+            h = structure.add_diagonal(h, self._fixed_diagonal, inplace=True)
         lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
         self._local.linearization = (key, lin)
         return lin
+
+    def _fixed_slots(self, k: int) -> list[tuple[NDArray[np.intp], int, int]]:
+        """Per slot of factor ``k`` holding fixed variables: those edges and the slot's column range in
+        the factor's block."""
+        fixed = self._fixed[self._variables[k]]
+        if not fixed.any():
+            return []
+        edges, slots = np.nonzero(fixed)
+        starts = np.cumsum([0, *(self._layout.block_dims[b] for b in self._slots[k])])
+        return [(edges[slots == t], int(starts[t]), int(starts[t + 1])) for t in np.unique(slots)]
 
     def _jacobian_block(self, k: int, jacobians: Sequence[FloatArray]) -> FloatArray:
         """Factor ``k``'s Jacobians side by side, ``(m, r, Σd)``, with zero columns for the
         fixed variables (so their update is exactly zero): the factor's own array when its
         fresh Jacobians are slices of one, else a concatenation."""
-        f, fixed = self._factors[k], self._fixed[self._variables[k]]
-        block = _side_by_side(jacobians) if f.fresh_jacobians else None
+        block = _side_by_side(jacobians) if self._factors[k].fresh_jacobians else None
         if block is None:
             block = np.concatenate(jacobians, axis=-1)
-        if fixed.any():
-            edges, slots = np.nonzero(fixed)
-            widths = [np.shape(j)[-1] for j in jacobians]
-            starts = np.cumsum([0, *widths])
-            for s in np.unique(slots):  # over the slots, not the edges
-                block[edges[slots == s], :, starts[s] : starts[s + 1]] = 0.0
+        for edges, start, stop in self._fixed_columns[k]:
+            block[edges, :, start:stop] = 0.0
         return block
 
     def _build_structure(self, residuals: list[FloatArray]) -> BlockStructure:
