@@ -190,7 +190,7 @@ def so3_exp(w: Floats) -> np.ndarray | None:
 
 
 def _log3(m: Floats) -> Floats:
-    """``_so3.log``: Shepperd's quaternion, then ``2 atan2(|v|, w)/|v| · v``."""
+    """``_so3.log``: Shepperd's (unnormalized) quaternion, then ``2 atan2(|v|, w)/|v| · v``."""
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = m
     diag = [r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22]
     k = diag.index(max(diag))
@@ -203,9 +203,7 @@ def _log3(m: Floats) -> Floats:
         (s02, s12, big, d10),
         (d21, d02, d10, big),
     )[k]
-    n = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-    qx, qy, qz, qw = qx / n, qy / n, qz / n, qw / n
-    if qw < 0.0:
+    if qw < 0.0:  # a positive multiple of the quaternion, not normalized (as ``_so3.log``)
         qx, qy, qz, qw = -qx, -qy, -qz, -qw
     ratio = _series.atan2_ratio_float(qx * qx + qy * qy + qz * qz, qw)
     ratio *= 2.0

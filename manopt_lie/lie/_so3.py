@@ -216,12 +216,13 @@ def exp(w: FloatArray, out: FloatArray | None = None) -> FloatArray:
 exp.into = True  # type: ignore[attr-defined]
 
 
-def to_quaternion(r: FloatArray) -> FloatArray:
-    """Unit quaternion ``(x, y, z, w)`` with ``w ≥ 0`` (Shepperd's method).
+def _shepperd(r: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """A positive multiple ``(x, y, z, w)`` of the unit quaternion of ``R`` with ``w ≥ 0``, by
+    components (Shepperd's method, not normalized).
 
-    Of the four proportional candidate columns of the symmetric matrix built from
-    ``R``, the one with the largest diagonal entry is normalized, so the result
-    is accurate to machine precision for every rotation, including angle π.
+    Of the four proportional candidate columns of the symmetric matrix built from ``R``, the one
+    with the largest diagonal entry is taken (its length is ``4|q_k|``, at least 2), so the
+    quaternion is accurate to machine precision for every rotation, including angle π.
     """
     r00, r01, r02 = r[..., 0, 0], r[..., 0, 1], r[..., 0, 2]
     r10, r11, r12 = r[..., 1, 0], r[..., 1, 1], r[..., 1, 2]
@@ -230,28 +231,27 @@ def to_quaternion(r: FloatArray) -> FloatArray:
     d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
     if ((trace > d0) & (trace > d1) & (trace > d2)).all():
         # Every angle below ~2π/3 (residuals, steps): column w is the largest (strictly, as
-        # argmax would pick it), no selection.
-        q = np.stack([d21, d02, d10, 1.0 + trace], axis=-1)
-    else:
-        diag = np.stack([d0, d1, d2, trace], -1)
-        k = np.argmax(diag, axis=-1)
-        s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
-        big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
-        # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
-        q = np.stack(
-            [
-                np.choose(k, [big, s01, s02, d21]),
-                np.choose(k, [s01, big, s12, d02]),
-                np.choose(k, [s02, s12, big, d10]),
-                np.choose(k, [d21, d02, d10, big]),
-            ],
-            axis=-1,
-        )
+        # argmax would pick it), no selection, and its w = 1 + tr R = 4w² > 0.
+        return d21, d02, d10, 1.0 + trace
+    diag = np.stack([d0, d1, d2, trace], -1)
+    k = np.argmax(diag, axis=-1)
+    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
+    # Candidate column k, as (x, y, z, w), each proportional to the quaternion.
+    q = [np.choose(k, [big, s01, s02, d21]), np.choose(k, [s01, big, s12, d02]),
+         np.choose(k, [s02, s12, big, d10]), np.choose(k, [d21, d02, d10, big])]  # fmt: skip
+    sign = np.where(q[3] < 0.0, -1.0, 1.0)
+    return q[0] * sign, q[1] * sign, q[2] * sign, q[3] * sign
+
+
+def to_quaternion(r: FloatArray) -> FloatArray:
+    """Unit quaternion ``(x, y, z, w)`` with ``w ≥ 0`` (Shepperd's method, :func:`_shepperd`),
+    accurate to machine precision for every rotation, including angle π."""
+    q = np.stack(_shepperd(r), axis=-1)
     n = q[..., 0] * q[..., 0]
     for i in (1, 2, 3):
         n += q[..., i] * q[..., i]
     q /= np.sqrt(n)[..., None]
-    q *= np.where(q[..., 3:] < 0.0, -1.0, 1.0)
     return q
 
 
@@ -286,8 +286,13 @@ def quaternion_log(q: FloatArray) -> FloatArray:
 
 @_one.fast(_one.so3_log, 2)
 def log(r: FloatArray) -> FloatArray:
-    """``Log(R) = θu`` with ``θ ∈ [0, π]``, through the quaternion."""
-    return quaternion_log(to_quaternion(r))
+    """``Log(R) = θu`` with ``θ ∈ [0, π]``, through the quaternion ``(v, w)``:
+    ``2 atan2(|v|, w)/|v| · v`` (:func:`quaternion_log`), which any positive multiple of the
+    quaternion gives alike, so Shepperd's column is used as it is, without normalizing."""
+    x, y, z, w = _shepperd(r)
+    ratio = _series.atan2_ratio(_formulas.sq3(x, y, z), w)
+    ratio *= 2.0
+    return _formulas.stack([ratio * x, ratio * y, ratio * z], 3)
 
 
 def _cross_terms(w: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -39,6 +39,36 @@ def checked_cost(value: Any, owner: str) -> float:
     return f
 
 
+class _CostAndGradient:
+    """``cost(x)`` and ``grad(x)`` from one callable ``x ↦ (f(x), gradient)``: each call
+    remembers both halves at its point (per thread, keyed on the point's value), so the
+    gradient at a point whose cost was just evaluated — an accepted step — costs nothing."""
+
+    __slots__ = ("_both", "_local")
+
+    def __init__(self, both: Callable[[Point], Any]) -> None:
+        self._both = both
+        self._local = threading.local()
+
+    def _at(self, x: Point) -> tuple[Any, Any]:
+        memo: tuple[Any, Any, Any] | None = getattr(self._local, "memo", None)
+        if memo is not None and same_point(memo[0], x):
+            return memo[1], memo[2]
+        out = self._both(x)
+        if not (isinstance(out, tuple) and len(out) == 2):
+            raise TypeError(
+                f"Problem: with egrad=True or rgrad=True the cost returns (f, gradient); got {type(out).__name__}"
+            )
+        self._local.memo = (snapshot(x), *out)
+        return out
+
+    def cost(self, x: Point) -> Any:
+        return self._at(x)[0]
+
+    def grad(self, x: Point) -> Any:
+        return self._at(x)[1]
+
+
 class Problem:
     """A smooth cost ``f : M → R`` on a manifold ``M``, with optional derivatives.
 
@@ -50,6 +80,12 @@ class Problem:
     * ``Hess f(x)[v] = rhess(x, v)``, or
       ``ehess2rhess(x, ∇f̄(x), ∇²f̄(x)[u], v)`` with ``u = to_ambient(x, v)``
       and ``ehess(x, u) = ∇²f̄(x)[u]``.
+
+    ``egrad=True`` or ``rgrad=True`` (SciPy's ``jac=True``) says that ``cost`` returns
+    the pair ``(f(x), gradient)``: costs that share their work with their gradient
+    (residuals, a matrix product) then evaluate both in one call, and the gradient at a
+    point whose cost was just evaluated — every accepted step of a line search or a
+    trust region — is the remembered one (per thread, keyed on the point's value).
 
     The callbacks are stored as given. The Euclidean gradient at the most recent
     point is remembered, so the many Hessian-vector products of a trust-region
@@ -64,9 +100,10 @@ class Problem:
     manifold : Manifold
         The search space.
     cost : callable ``x ↦ f(x)``
-        Returns a real number.
-    egrad, rgrad : callable ``x ↦ gradient``, optional
-        The Euclidean or the Riemannian gradient (at most one of them).
+        Returns a real number (with ``egrad=True`` or ``rgrad=True``: ``(f(x), gradient)``).
+    egrad, rgrad : callable ``x ↦ gradient`` or True, optional
+        The Euclidean or the Riemannian gradient (at most one of them); ``True``: the
+        second value of ``cost``.
     ehess, rhess : callable ``(x, u) ↦ Hessian-vector product``, optional
         The Euclidean Hessian applied to an ambient direction ``u`` (needs
         ``egrad``), or the Riemannian Hessian applied to a tangent ``v`` (needs
@@ -88,16 +125,17 @@ class Problem:
         manifold: Manifold,
         cost: Callable[[Point], Any],
         *,
-        egrad: Callable[[Point], Any] | None = None,
-        rgrad: Callable[[Point], Tangent] | None = None,
+        egrad: Callable[[Point], Any] | bool | None = None,
+        rgrad: Callable[[Point], Tangent] | bool | None = None,
         ehess: Callable[[Point, Any], Any] | None = None,
         rhess: Callable[[Point, Tangent], Tangent] | None = None,
     ) -> None:
         if not isinstance(manifold, Manifold):
             raise TypeError(f"Problem: manifold must be a Manifold, got {type(manifold).__name__}")
+        fused = egrad is True or rgrad is True
         for name, fn in {"cost": cost, "egrad": egrad, "rgrad": rgrad, "ehess": ehess, "rhess": rhess}.items():
-            if not callable(fn) and (name == "cost" or fn is not None):
-                raise TypeError(f"Problem: {name} must be callable, got {type(fn).__name__}")
+            if not callable(fn) and (name == "cost" or (fn is not None and fn is not True)):
+                raise TypeError(f"Problem: {name} must be callable{' or True' if 'grad' in name else ''}, got {type(fn).__name__}")
         if egrad is not None and rgrad is not None:
             raise ValueError("Problem: pass either egrad (Euclidean) or rgrad (Riemannian), not both")
         if ehess is not None and rhess is not None:
@@ -109,8 +147,13 @@ class Problem:
             )
         if rhess is not None and rgrad is None and egrad is None:
             raise ValueError("Problem: a Hessian needs a gradient; pass egrad or rgrad too")
+        if fused:  # cost returns (f, gradient): both halves from one call
+            both = _CostAndGradient(cost)
+            cost = both.cost
+            egrad, rgrad = (both.grad, None) if egrad is True else (None, both.grad)
         self._manifold = manifold
         self._cost = cost
+        assert not isinstance(egrad, bool) and not isinstance(rgrad, bool)  # True replaced above, False refused
         self._egrad, self._rgrad, self._ehess, self._rhess = egrad, rgrad, ehess, rhess
         self._local = threading.local()  # per-thread memo of the last Euclidean gradient
 

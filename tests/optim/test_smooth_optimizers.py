@@ -283,6 +283,54 @@ def test_hessian_products_reuse_the_euclidean_gradient():
     assert len(calls) == res.ngev  # one egrad per point, however many Hessian products
 
 
+def _fused_rayleigh(n=30, seed=0, where="egrad"):
+    """The Rayleigh quotient with ``cost`` returning ``(f, gradient)``, counting its calls."""
+    a = _symmetric(np.random.default_rng(seed), n)
+    calls = []
+
+    def both(x):
+        calls.append(1)
+        ax = a @ x
+        f = float(x @ ax)
+        return (f, 2.0 * ax) if where == "egrad" else (f, 2.0 * (ax - f * x))
+
+    return Problem(Sphere(n), cost=both, **{where: True}), calls, np.linalg.eigvalsh(a)[0]
+
+
+@pytest.mark.parametrize("where", ["egrad", "rgrad"])
+@pytest.mark.parametrize("key", ["gd", "cg-pr", "cg-hz", "tr"])
+def test_a_cost_returning_its_gradient_is_called_once_per_point(key, where):
+    """``egrad=True``/``rgrad=True`` (SciPy's ``jac=True``): the same optimum as separate
+    callbacks, and the gradient at an accepted point reuses the call that gave its cost."""
+    problem, calls, lam = _fused_rayleigh(where=where)
+    x0 = problem.manifold.random_point(1)
+    res = OPTIMIZERS[key]().solve(problem, x0)
+    assert res.success and res.fun == pytest.approx(lam, abs=1e-9)
+    separate, _, _ = rayleigh(hessian=False)
+    twin = OPTIMIZERS[key]().solve(separate, x0)
+    assert res.nit == twin.nit and res.fun == pytest.approx(twin.fun, rel=1e-12)  # the same iterates
+    # Every accepted point's gradient comes with its cost: fewer calls than costs + gradients.
+    assert len(calls) < res.nfev + res.ngev
+    assert len(calls) <= res.nfev + (res.ngev - res.nit if key == "tr" else 1)
+
+
+def test_a_cost_returning_its_gradient_is_checked():
+    sphere = Sphere(3)
+    with pytest.raises(TypeError, match=r"returns \(f, gradient\)"):
+        Problem(sphere, cost=lambda x: 1.0, egrad=True).cost(np.array([1.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="either egrad"):
+        Problem(sphere, cost=lambda x: (1.0, x), egrad=True, rgrad=True)
+    with pytest.raises(ValueError, match="either egrad"):
+        Problem(sphere, cost=lambda x: (1.0, x), egrad=True, rgrad=lambda x: x)
+    with pytest.raises(TypeError, match="egrad must be callable or True"):
+        Problem(sphere, cost=lambda x: 1.0, egrad=False)
+    p = Problem(sphere, cost=lambda x: (float(x @ x), 2.0 * x), egrad=True)
+    x = np.array([0.0, 1.0, 0.0])
+    assert p.cost(x) == 1.0 and np.allclose(p.grad(x), 0.0)  # 2x projected on the tangent space
+    x[...] = [1.0, 0.0, 0.0]  # mutated in place: a new point, evaluated anew
+    assert np.allclose(p.grad(x), 0.0) and p.validate(x)[0] == 1.0
+
+
 # ---- the strong Wolfe line search --------------------------------------------------
 
 
