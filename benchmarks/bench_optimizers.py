@@ -256,6 +256,7 @@ def karcher_case(n: int, rng: np.random.Generator) -> Case:
 def rayleigh_case(n: int, rng: np.random.Generator) -> Case:
     a = _symmetric(rng, n)
     clock = Clock()
+
     def cost_and_egrad(x: np.ndarray) -> tuple[float, np.ndarray]:
         ax = a @ x  # one product for both halves
         return float(x @ ax), 2.0 * ax
@@ -298,6 +299,7 @@ def brockett_case(n: int, p: int, rng: np.random.Generator) -> Case:
     big_n = np.diag(np.arange(p, 0, -1.0))
     n2 = 2.0 * big_n
     clock = Clock()
+
     def cost_and_egrad(x: np.ndarray) -> tuple[float, np.ndarray]:
         axn = (a @ x) @ big_n  # one product for both halves: f = tr(Xᵀ(AXN)), ∇f̄ = 2AXN
         return float(np.sum(x * axn)), 2.0 * axn

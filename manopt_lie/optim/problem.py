@@ -135,7 +135,8 @@ class Problem:
         fused = egrad is True or rgrad is True
         for name, fn in {"cost": cost, "egrad": egrad, "rgrad": rgrad, "ehess": ehess, "rhess": rhess}.items():
             if not callable(fn) and (name == "cost" or (fn is not None and fn is not True)):
-                raise TypeError(f"Problem: {name} must be callable{' or True' if 'grad' in name else ''}, got {type(fn).__name__}")
+                also = " or True" if name in ("egrad", "rgrad") else ""
+                raise TypeError(f"Problem: {name} must be callable{also}, got {type(fn).__name__}")
         if egrad is not None and rgrad is not None:
             raise ValueError("Problem: pass either egrad (Euclidean) or rgrad (Riemannian), not both")
         if ehess is not None and rhess is not None:

@@ -267,7 +267,7 @@ def test_strong_wolfe_returns_the_transported_direction():
     res = StrongWolfe().search(problem.cost, problem.grad, m, x, problem.cost(x), -g, g_norm, -g_norm * g_norm)
     assert res.success and res.grad is not None
     np.testing.assert_allclose(res.transported, m.transp(x, res.x, -g), atol=1e-14)
-    plain = Backtracking().search(problem.cost, problem.grad, m, x, problem.cost(x), -g, g_norm, -g_norm**2)
+    plain = Backtracking().search(problem.cost, problem.grad, m, x, problem.cost(x), -g, g_norm, -(g_norm**2))
     assert plain.transported is None
 
 
