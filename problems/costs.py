@@ -111,21 +111,38 @@ def information_sqrt(information: FloatArray, edge_names: Any = None, *, repair:
         ``repair`` symmetrizes them and replaces the indefinite ones by
         :func:`nearest_positive_definite`.
     """
-    asymmetric, bad = asymmetric_edges(information), indefinite_edges(information)
+    asymmetric = asymmetric_edges(information)
     if not repair and asymmetric.size:
         raise InformationMatrixError(
             f"{asymmetric.size} edges have information matrices that are not symmetric: "
             f"{_named(asymmetric, edge_names)}; pass repair_information=True to use their symmetric parts"
         )
+    information = _symmetric(information)
+    root = _all_cholesky(information)
+    if root is not None:  # the common case: every one positive definite, one batched factorization
+        return np.swapaxes(root, -1, -2)
+    bad = indefinite_edges(information)
     if not repair and bad.size:
         raise IndefiniteInformationError(
             f"{bad.size} edges have information matrices that are not positive definite (indefinite or singular): "
             f"{_named(bad, edge_names)}; pass repair_information=True to use the nearest positive definite ones"
         )
-    information = _symmetric(information)
     if bad.size:
         information[bad] = nearest_positive_definite(information[bad])
     return np.swapaxes(np.linalg.cholesky(information), -1, -2)
+
+
+def _all_cholesky(information: FloatArray) -> FloatArray | None:
+    """The Cholesky factors of symmetric matrices if every one has them, finite and with a
+    positive diagonal (LAPACK's positive pivots), else ``None``: a batched factorization costs
+    a fifth of the eigenvalues that tell which matrices fail (:func:`indefinite_edges`)."""
+    try:
+        with np.errstate(all="ignore"):
+            root = np.linalg.cholesky(information)
+    except np.linalg.LinAlgError:
+        return None
+    diagonal = np.diagonal(root, axis1=-2, axis2=-1)
+    return root if np.isfinite(root).all() and (diagonal > 0).all() else None
 
 
 def _trace_of_inverse(blocks: FloatArray) -> FloatArray:

@@ -132,6 +132,25 @@ def test_information_sqrt_whitens_and_names_indefinite_edges(rng):
     np.testing.assert_allclose(near[0], np.diag([1.0, 1e-9, 1.0]), atol=1e-15)
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [np.zeros((3, 3)), np.diag([1.0, np.nan, 1.0]), np.diag([1.0, np.inf, 1.0]), np.full((3, 3), 1.0),
+     np.diag([1e300, 1.0, -1e-300])],
+    ids=["zero", "nan", "inf", "rank-one", "huge-and-negative"],
+)  # fmt: skip
+def test_information_sqrt_takes_one_factorization_only_when_every_matrix_is_definite(rng, bad):
+    """The batched Cholesky shortcut never lets a singular, non-finite or indefinite matrix
+    through: it falls back to the eigenvalues, which name the edge."""
+    info = random_information(rng, 5, 3)
+    root = costs.information_sqrt(info)
+    np.testing.assert_allclose(np.swapaxes(root, 1, 2) @ root, info, atol=1e-12)
+    info[2] = bad
+    with pytest.raises(costs.IndefiniteInformationError, match=r"1 edges .*: e2;"):
+        costs.information_sqrt(info, [f"e{k}" for k in range(5)])
+    huge = random_information(rng, 2, 3) * 1e300  # definite, near the float range: still factorized
+    assert np.isfinite(costs.information_sqrt(huge)).all()
+
+
 def test_se_sync_weights():
     info2 = np.diag([2.0, 4.0, 7.0])[None]
     kappa, tau = costs.se_sync_weights(info2, 2)
