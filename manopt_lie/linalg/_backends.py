@@ -6,13 +6,17 @@ ordering and symbolic analysis there, once, and then only refactors new
 values (``factorize(data)``) and solves (``solve(b)``):
 
 - ``cholmod`` (CHOLMOD from SuiteSparse, through the optional package
-  ``cvxopt``): ordering and supernodal symbolic analysis once, numeric ``LLᵀ``
-  of the lower triangle per factorization. A given fill-reducing ordering (the
-  structure's AMD on the variables' graph) spares CHOLMOD its own AMD on the
-  coordinates, the bulk of its analysis memory. Dense, well-connected graphs fill
-  in and profit from its BLAS-3 supernodes: 26 ms vs QDLDL's 97 ms per
-  factorization on ``sphere2500`` (d = 6), at a cost of 1-6 ms more on sparse
-  2-D graphs, see ``benchmarks/bench_linalg.py``.
+  ``cvxopt``): ordering and symbolic analysis once, numeric factorization of
+  the lower triangle per call. A given fill-reducing ordering (the structure's
+  AMD on the variables' graph) spares CHOLMOD its own AMD on the coordinates,
+  the bulk of its analysis memory. CHOLMOD chooses between its two kinds from the
+  analysis (flops per entry of the factor): dense, well-connected graphs fill in
+  and profit from BLAS-3 supernodes (``LLᵀ``: 26 ms vs QDLDL's 97 ms per
+  factorization on ``sphere2500``, d = 6), sparse 2-D graphs from the simplicial
+  ``LDLᵀ``, as fast there and ~30 MB lighter per 10⁵ poses than supernodes
+  (``benchmarks/bench_linalg.py``, ``benchmarks/bench_scaling.py``). ``LDLᵀ``
+  does not fail on an indefinite matrix, so the signs of ``D`` are read after
+  every factorization (one diagonal solve).
 - ``qdldl`` (optional package ``qdldl``): AMD ordering and elimination tree
   computed once, LDLᵀ of the upper triangle refactored by ``Solver.update``.
 - ``superlu`` (SciPy, always present): SuperLU's multiple minimum degree
@@ -27,7 +31,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
 from __future__ import annotations
 
 import threading
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -153,8 +157,14 @@ class _QDLDL:
         return np.asarray(self._solver.solve(b), dtype=np.float64)
 
 
+SUPERNODAL = 1
+"""CHOLMOD's ``options["supernodal"]`` for every analysis: 1, its own choice of supernodal ``LLᵀ``
+or simplicial ``LDLᵀ`` (2 forces supernodes, 0 forbids them)."""
+
+
 class _CHOLMOD:
-    """CHOLMOD's supernodal ``LLᵀ`` of the lower triangle (through CVXOPT).
+    """CHOLMOD's ``LLᵀ`` (supernodal) or ``LDLᵀ`` (simplicial) of the lower triangle, as its
+    analysis chooses (through CVXOPT).
 
     One CVXOPT sparse matrix is built at analysis; each factorization only
     overwrites its values (``A.V``), in CVXOPT's column-major order, which is
@@ -180,9 +190,11 @@ class _CHOLMOD:
             and np.array_equal(np.asarray(self._A.J), np.asarray(cols))
         ):
             raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
+        self.pivots: FloatArray | None = None
+        """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:
             saved = dict(cholmod.options)
-            cholmod.options["supernodal"] = 2  # options are module-global: set for this analysis only
+            cholmod.options["supernodal"] = SUPERNODAL  # options are module-global: set for this analysis only
             try:
                 if ordering is None:
                     self._factor = cholmod.symbolic(self._A, uplo="L")
@@ -199,11 +211,27 @@ class _CHOLMOD:
             self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:
             raise SingularSystemError(f"CHOLMOD factorization failed: not positive definite ({err})") from None
+        # D⁻¹·1 (1 for LLᵀ, whose D = I): positive and finite iff every pivot of LDLᵀ is.
+        inverse_pivots = self._cvxopt.matrix(1.0, (self._A.size[0], 1))
+        self._cholmod.solve(self._factor, inverse_pivots, sys=6)
+        d = np.asarray(inverse_pivots).reshape(-1)
+        if not (np.isfinite(d).all() and (d > 0.0).all()):
+            raise SingularSystemError(
+                f"CHOLMOD factorization: not positive definite ({int(np.sum(~(d > 0.0)))} pivots of LDLᵀ ≤ 0 or nan)"
+            )
+        self.pivots = None if (d == 1.0).all() else 1.0 / d
 
     def solve(self, b: FloatArray) -> FloatArray:
         x = self._cvxopt.matrix(np.array(b, dtype=np.float64))
         self._cholmod.solve(self._factor, x)
         return np.asarray(x, dtype=np.float64).reshape(-1)
+
+
+def _int_column(cvxopt: Any, values: IndexArray) -> Any:
+    """``values`` as a CVXOPT integer column, written into its buffer through a NumPy view."""
+    out = cvxopt.matrix(0, (values.size, 1), "i")
+    np.asarray(out).reshape(-1)[:] = values
+    return out
 
 
 BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD]] = {

@@ -118,10 +118,15 @@ def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
 
     def lower() -> sp.csc_matrix:
         # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize.
+        pivots = impl.pivots
         colptr, rowind, values = cholmod.getfactor(impl._factor).CCS
         numeric[0] = False
-        arrays = (np.asarray(a).reshape(-1) for a in (values, rowind, colptr))
-        return sp.csc_matrix(tuple(arrays), shape=(n, n))
+        arrays = [np.asarray(a).reshape(-1) for a in (values, rowind, colptr)]
+        if pivots is None:  # LLᵀ
+            return sp.csc_matrix(tuple(arrays), shape=(n, n))
+        # LDLᵀ, packed: D on the diagonal (the head of each sorted column), L₁ below it.
+        arrays[0][arrays[2][:-1]] = 1.0
+        return _scaled(sp.csc_matrix(tuple(arrays), shape=(n, n)), pivots, "CHOLMOD")
 
     return CholeskyFactor(perm, "cholmod", lower, solve, exact=True)
 

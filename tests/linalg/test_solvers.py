@@ -104,6 +104,25 @@ def test_singular_or_indefinite_matrices_raise(solver, dense, b):
         solver(sp.csc_matrix(dense), b)
 
 
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="needs cvxopt (CHOLMOD)")
+@pytest.mark.parametrize("n", [30, 3000], ids=["simplicial", "larger"])
+def test_cholmod_reads_the_pivot_signs_of_its_ldlt(n):
+    """CHOLMOD factors sparse matrices as LDLᵀ, which an indefinite matrix does not make fail:
+    one negative pivot among many, with a right-hand side and probe of positive curvature, is
+    still refused (from the signs of D), and an SPD matrix of the same pattern is solved."""
+    off = np.full(n - 1, 0.5)
+    values = np.full(n, 2.0)
+    values[n // 2] = -1.0
+    indefinite = sp.diags([off, values, off], [-1, 0, 1], format="csc")
+    b = np.ones(n)
+    with pytest.raises(SingularSystemError, match="pivots of LDLᵀ"):
+        CholeskySolver("cholmod")(indefinite, b)
+    values[n // 2] = 2.0
+    spd = sp.diags([off, values, off], [-1, 0, 1], format="csc")
+    x = CholeskySolver("cholmod")(spd, b)
+    assert np.linalg.norm(spd @ x - b) <= 1e-12 * n
+
+
 def test_rejects_bad_matrices(solver):
     with pytest.raises(ValueError, match="not symmetric"):
         solver(sp.csc_matrix(np.array([[2.0, 1.0], [0.0, 2.0]])), np.ones(2))
