@@ -138,7 +138,7 @@ def _all_cholesky(information: FloatArray) -> FloatArray | None:
     a fifth of the eigenvalues that tell which matrices fail (:func:`indefinite_edges`)."""
     try:
         with np.errstate(all="ignore"):
-            root: FloatArray = np.linalg.cholesky(information)
+            root = np.asarray(np.linalg.cholesky(information), dtype=np.float64)
     except np.linalg.LinAlgError:
         return None
     diagonal = np.diagonal(root, axis1=-2, axis2=-1)
