@@ -199,6 +199,10 @@ class _CHOLMOD:
                 if ordering is None:
                     self._factor = cholmod.symbolic(self._A, uplo="L")
                 else:
+                    # Only the given ordering: CHOLMOD would also run its AMD on the coordinates and
+                    # keep the lesser fill, which on pose graphs is within 0.5 % of the variables'
+                    # AMD, for 2-3.5× the analysis time and ~40 % more of its memory.
+                    cholmod.options["nmethods"] = 1
                     p = cvxopt.matrix(np.asarray(ordering, dtype=np.int64))
                     self._factor = cholmod.symbolic(self._A, p=p, uplo="L")
             finally:
