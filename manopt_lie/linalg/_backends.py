@@ -158,8 +158,8 @@ class _QDLDL:
 
 
 SUPERNODAL = 1
-"""CHOLMOD's ``options["supernodal"]`` for every analysis: 1, its own choice of supernodal ``LLᵀ``
-or simplicial ``LDLᵀ`` (2 forces supernodes, 0 forbids them)."""
+"""CHOLMOD's ``options["supernodal"]`` unless the solver asks for a kind: 1, its own choice of
+supernodal ``LLᵀ`` or simplicial ``LDLᵀ`` (2 forces supernodes, 0 forbids them)."""
 
 
 class _CHOLMOD:
@@ -171,7 +171,10 @@ class _CHOLMOD:
     the order of the lower triangle of a canonical CSC matrix.
     """
 
-    def __init__(self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None) -> None:
+    def __init__(
+        self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
+        supernodal: bool | None = None,
+    ) -> None:
         import cvxopt
         from cvxopt import cholmod
 
@@ -194,7 +197,8 @@ class _CHOLMOD:
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:
             saved = dict(cholmod.options)
-            cholmod.options["supernodal"] = SUPERNODAL  # options are module-global: set for this analysis only
+            # Options are module-global: set for this analysis only.
+            cholmod.options["supernodal"] = SUPERNODAL if supernodal is None else 2 if supernodal else 0
             try:
                 if ordering is None:
                     self._factor = cholmod.symbolic(self._A, uplo="L")

@@ -62,6 +62,10 @@ class CholeskySolver:
         supernodes another 4x on dense 3-D graphs (``benchmarks/bench_linalg.py``).
     rtol : float
         Relative residual tolerance of the checks below (default 1e-6).
+    supernodal : bool, optional
+        CHOLMOD only: ``True`` forces its supernodal ``LLᵀ`` (relaxed supernodes, which
+        selected inversion wants), ``False`` its simplicial ``LDLᵀ``; ``None`` (the
+        default) lets its analysis choose from the flops per entry of the factor.
 
     Attributes
     ----------
@@ -100,7 +104,7 @@ class CholeskySolver:
     caught only when ``b`` or the probe meets negative curvature.
     """
 
-    def __init__(self, backend: str = "auto", *, rtol: float = 1e-6) -> None:
+    def __init__(self, backend: str = "auto", *, rtol: float = 1e-6, supernodal: bool | None = None) -> None:
         usable = available_backends()
         if backend == "auto":
             backend = usable[0]
@@ -110,6 +114,7 @@ class CholeskySolver:
             raise ValueError(f"backend {backend!r} needs an optional package: pip install {_PACKAGES[backend]}")
         self.backend = backend
         self.rtol = float(rtol)
+        self.supernodal = supernodal
         self.n_analyses = 0
         self._impl: Backend | None = None
         self._indptr: NDArray[np.signedinteger] | None = None
@@ -131,7 +136,7 @@ class CholeskySolver:
         """A fresh solver with these settings and no analysis, for one run
         (:class:`~manopt_lie.linalg.LinearSolver`); the structure's pattern is
         analysed at the first call (or taken from the pool of analyses)."""
-        solver = CholeskySolver(self.backend, rtol=self.rtol)
+        solver = CholeskySolver(self.backend, rtol=self.rtol, supernodal=self.supernodal)
         solver._trusted = (structure.indptr, structure.indices)
         solver._structure = structure
         return solver
@@ -159,7 +164,8 @@ class CholeskySolver:
         if not H.has_canonical_format:
             H = H.copy()
             H.sum_duplicates()
-        key = pattern_key(self.backend, H.indptr, H.indices)
+        kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
+        key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices)
         impl = ANALYSES.acquire(key)
         if impl is None:
             trusted = self._trusted is not None and all(
@@ -171,7 +177,9 @@ class CholeskySolver:
                     raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
             if trusted and self.backend == "cholmod":
                 assert self._structure is not None
-                impl = _CHOLMOD(H.indptr, H.indices, self._structure.fill_reducing_ordering())
+                impl = _CHOLMOD(H.indptr, H.indices, self._structure.fill_reducing_ordering(), self.supernodal)
+            elif self.backend == "cholmod":
+                impl = _CHOLMOD(H.indptr, H.indices, None, self.supernodal)
             else:
                 impl = BACKENDS[self.backend](H.indptr, H.indices)
         if self._lend is not None:

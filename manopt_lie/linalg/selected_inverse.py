@@ -21,7 +21,8 @@ reached), so ``Z`` is computed on that pattern only, at about the cost of the fa
 columns restricts the loop to their supernodes and the supernodes' ancestors.
 
 :func:`cholesky_factor` obtains ``(L, P)`` from any :class:`CholeskySolver` backend
-(CHOLMOD's supernodal factor, QDLDL's or SuperLU's ``LDLᵀ`` scaled to ``LLᵀ``);
+(CHOLMOD's supernodal factor, QDLDL's or SuperLU's ``LDLᵀ`` scaled to ``LLᵀ``; CHOLMOD's
+simplicial ``LDLᵀ`` too, though this function asks for supernodes);
 :class:`SelectedInverse` runs the recursion and reads entries of ``H⁻¹`` by original
 index; :meth:`CholeskyFactor.solve` is the alternative for a few columns of ``H⁻¹``,
 multi-right-hand-side triangular solves.
@@ -189,7 +190,7 @@ def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol:
     SingularSystemError
         If ``H`` is not numerically positive definite (e.g. a pose graph without a fixed gauge).
     """
-    solver = CholeskySolver(backend, rtol=rtol)
+    solver = CholeskySolver(backend, rtol=rtol, supernodal=True)  # relaxed supernodes: a short loop
     H = _check_square(H)
     if not H.has_canonical_format:
         H = H.copy()

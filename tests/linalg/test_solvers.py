@@ -123,6 +123,21 @@ def test_cholmod_reads_the_pivot_signs_of_its_ldlt(n):
     assert np.linalg.norm(spd @ x - b) <= 1e-12 * n
 
 
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="needs cvxopt (CHOLMOD)")
+def test_cholmod_kind_can_be_chosen(rng):
+    """``supernodal=True`` forces CHOLMOD's LLᵀ (no pivots D), ``False`` its LDLᵀ, on a pattern
+    its own choice would factor simplicially; both solve alike, and their analyses are pooled apart."""
+    S, blocks, residuals = pose_graph(rng, n_poses=60, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    x = {}
+    for kind in (True, False, None):
+        solver = CholeskySolver("cholmod", supernodal=kind).bind(S)
+        x[kind] = solver(H, g)
+        assert solver.supernodal is kind and (solver._impl.pivots is None) == (kind is True)
+    for kind in (False, None):
+        assert np.linalg.norm(x[kind] - x[True]) <= 1e-8 * np.linalg.norm(x[True])
+
+
 def test_rejects_bad_matrices(solver):
     with pytest.raises(ValueError, match="not symmetric"):
         solver(sp.csc_matrix(np.array([[2.0, 1.0], [0.0, 2.0]])), np.ones(2))
