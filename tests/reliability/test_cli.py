@@ -158,7 +158,14 @@ def test_ctrl_c_exits_130_writes_nothing(tmp_path_factory: pytest.TempPathFactor
     start = time.perf_counter()
     subprocess.run([*command[:8], "1", *command[9:-2]], capture_output=True, timeout=300)
     startup = time.perf_counter() - start
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # The child takes Ctrl-C as a terminal would deliver it, even when this suite runs where
+    # SIGINT is ignored (a background job of a script, ``nohup``): ignored dispositions are
+    # inherited, and Python then installs no KeyboardInterrupt handler.
+    def interruptible() -> None:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=interruptible)  # fmt: skip
     time.sleep(max(4.0, 2.0 * startup + 1.0))
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(signal.SIGINT)
