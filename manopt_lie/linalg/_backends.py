@@ -31,7 +31,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
 from __future__ import annotations
 
 import threading
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -233,13 +233,6 @@ class _CHOLMOD:
         x = self._cvxopt.matrix(np.array(b, dtype=np.float64))
         self._cholmod.solve(self._factor, x)
         return np.asarray(x, dtype=np.float64).reshape(-1)
-
-
-def _int_column(cvxopt: Any, values: IndexArray) -> Any:
-    """``values`` as a CVXOPT integer column, written into its buffer through a NumPy view."""
-    out = cvxopt.matrix(0, (values.size, 1), "i")
-    np.asarray(out).reshape(-1)[:] = values
-    return out
 
 
 BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD]] = {

@@ -98,9 +98,11 @@ class CholeskySolver:
     leaves a relative probe residual of 1–20, an anchored graph at most 2e-8
     (``parking-garage``, condition number 1e11). The price is that, with the
     default ``rtol``, systems with condition number beyond about 1e12–1e13
-    count as singular; loosen ``rtol`` for worse ones. Pivot signs are not read
-    (neither backend exposes them cheaply), so an indefinite but
-    well-conditioned ``H`` — impossible for ``JᵀWJ`` with ``w ≥ 0`` — is
+    count as singular; loosen ``rtol`` for worse ones. CHOLMOD's pivot signs
+    are read after every factorization (its supernodal ``LLᵀ`` fails on them,
+    its simplicial ``LDLᵀ`` is checked); QDLDL's and SuperLU's are not (they
+    expose them only with a copy of the factor), so with those an indefinite
+    but well-conditioned ``H`` — impossible for ``JᵀWJ`` with ``w ≥ 0`` — is
     caught only when ``b`` or the probe meets negative curvature.
     """
 
