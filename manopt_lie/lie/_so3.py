@@ -278,10 +278,15 @@ def quaternion_log(q: FloatArray) -> FloatArray:
 
     The ratio is :func:`_series.atan2_ratio`, a series in ``|v|²/w²`` near the identity.
     """
-    v, w = q[..., :3], q[..., 3]
-    ratio = _series.atan2_ratio(sq(v), w)
+    return _rotation_vector(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
+
+
+def _rotation_vector(x: FloatArray, y: FloatArray, z: FloatArray, w: FloatArray) -> FloatArray:
+    """``2 atan2(|v|, w)/|v| · v`` from the components of ``(v, w)``, any positive multiple of a
+    quaternion with ``w ≥ 0`` (the ratio is scale-free)."""
+    ratio = _series.atan2_ratio(_formulas.sq3(x, y, z), w)
     ratio *= 2.0
-    return ratio[..., None] * v
+    return _formulas.stack([ratio * x, ratio * y, ratio * z], 3)
 
 
 @_one.fast(_one.so3_log, 2)
@@ -289,10 +294,7 @@ def log(r: FloatArray) -> FloatArray:
     """``Log(R) = θu`` with ``θ ∈ [0, π]``, through the quaternion ``(v, w)``:
     ``2 atan2(|v|, w)/|v| · v`` (:func:`quaternion_log`), which any positive multiple of the
     quaternion gives alike, so Shepperd's column is used as it is, without normalizing."""
-    x, y, z, w = _shepperd(r)
-    ratio = _series.atan2_ratio(_formulas.sq3(x, y, z), w)
-    ratio *= 2.0
-    return _formulas.stack([ratio * x, ratio * y, ratio * z], 3)
+    return _rotation_vector(*_shepperd(r))
 
 
 def _cross_terms(w: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
