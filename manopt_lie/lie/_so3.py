@@ -229,10 +229,26 @@ def _shepperd(r: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatA
     r20, r21, r22 = r[..., 2, 0], r[..., 2, 1], r[..., 2, 2]
     d0, d1, d2, trace = r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11, r00 + r11 + r22
     d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
-    if ((trace > d0) & (trace > d1) & (trace > d2)).all():
+    w = 1.0 + trace
+    w_largest = (trace > d0) & (trace > d1) & (trace > d2)
+    if w_largest.all():
         # Every angle below ~2π/3 (residuals, steps): column w is the largest (strictly, as
         # argmax would pick it), no selection, and its w = 1 + tr R = 4w² > 0.
-        return d21, d02, d10, 1.0 + trace
+        return d21, d02, d10, w
+    if r.ndim == 2:  # one element (a 0-d selection below would not be writable)
+        return _shepperd_select(r, d0, d1, d2, trace)
+    # The few elements with a larger x, y or z column alone go through the selection.
+    x, y, z, rest = d21, d02, d10, ~w_largest  # new arrays, written in place
+    x[rest], y[rest], z[rest], w[rest] = _shepperd_select(r[rest], d0[rest], d1[rest], d2[rest], trace[rest])
+    return x, y, z, w
+
+
+def _shepperd_select(
+    r: FloatArray, d0: FloatArray, d1: FloatArray, d2: FloatArray, trace: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """:func:`_shepperd`'s column with the largest diagonal entry, for any rotations."""
+    r01, r02, r10, r12, r20, r21 = r[..., 0, 1], r[..., 0, 2], r[..., 1, 0], r[..., 1, 2], r[..., 2, 0], r[..., 2, 1]
+    d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
     diag = np.stack([d0, d1, d2, trace], -1)
     k = np.argmax(diag, axis=-1)
     s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21

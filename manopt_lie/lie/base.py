@@ -407,7 +407,13 @@ class LieGroup:
         """``Y ⊖ X = Log(X⁻¹·Y)`` for ``Y = self``, ``X = other``; Jacobians
         ``Jr(τ)⁻¹`` wrt ``Y`` and ``−Jl(τ)⁻¹`` wrt ``X`` (eqs. 82–83)."""
         x = self._operand(other)
-        tau = self._blocks(lambda b, a: self._log(self._compose(self._inverse(a), b)), self._data, x)
+        if x.ndim == len(self.storage_shape) and self._data.size >= _matrix.ONE_PRODUCT * x.size:
+            # One X against a batch: Log(X⁻¹Y) = Ad_{X⁻¹} Log(Y X⁻¹) (conjugation), whose product
+            # has the single factor on the right (one BLAS product, see _matrix.product).
+            x_inv = self._inverse(x)
+            tau = self._blocks(lambda b: self._log(self._compose(b, x_inv)), self._data) @ self._adjoint(x_inv).T
+        else:
+            tau = self._blocks(lambda b, a: self._log(self._compose(self._inverse(a), b)), self._data, x)
         if not jac:
             return tau
         return tau, self._tangent_map(self._jr_inv, tau), -self._tangent_map(self._jr_inv, -tau)
