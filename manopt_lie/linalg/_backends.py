@@ -182,7 +182,7 @@ class _CHOLMOD:
         cols = _columns(indptr)
         _check_diagonal(cols, indices == cols)
         lower = indices >= cols
-        self._lower = np.flatnonzero(lower)
+        self._lower = np.flatnonzero(lower).astype(indices.dtype)  # int32 for int32 patterns: half the memory
         n = indptr.size - 1
         # The symbolic analysis reads the pattern only: any values will do.
         rows, cols = cvxopt.matrix(indices[lower].astype(np.int64)), cvxopt.matrix(cols[lower].astype(np.int64))
