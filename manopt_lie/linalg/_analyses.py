@@ -10,7 +10,8 @@ solver at a time: a solver takes an idle backend of its pattern, or analyses ane
 gives it back when it is garbage-collected or analyses another pattern. Concurrent
 solvers of one pattern (threads) thus each get their own.
 
-Patterns are keyed by ``(backend, n, nnz, index dtypes, BLAKE2b(indptr, indices))``. The pool keeps
+Patterns are keyed by ``(backend, n, nnz, index dtypes, BLAKE2b(indptr, indices))`` (for a
+structure's own pattern, the digest of its blocks and their sizes instead). The pool keeps
 at most :data:`MAX_IDLE` idle backends and :data:`MAX_IDLE_NNZ` stored entries of
 ``H`` in all (least recently returned dropped first): a big factor is not kept alive
 for a pattern that may never come back.
@@ -34,15 +35,24 @@ MAX_IDLE_NNZ = 4_000_000
 Key = tuple[str, int, int, str, bytes]
 
 
-def pattern_key(backend: str, indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger]) -> Key:
-    """The pool's key of a CSC pattern: its sizes, index dtype and a 128-bit BLAKE2b digest of
-    its arrays' bytes (no copy of contiguous arrays)."""
-    digest = hashlib.blake2b(digest_size=16)
-    for a in (indptr, indices):
+def digest(*arrays: NDArray[Any]) -> bytes:
+    """A 128-bit BLAKE2b digest of the arrays' bytes (no copy of contiguous arrays)."""
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
         # .data, not memoryview(...): NumPy's stubs give ndarray a __buffer__ on Python 3.12+ only.
-        digest.update(np.ascontiguousarray(a).data.cast("B"))
+        h.update(np.ascontiguousarray(a).data.cast("B"))
+    return h.digest()
+
+
+def pattern_key(
+    backend: str, indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger], blocks: bytes | None = None
+) -> Key:
+    """The pool's key of a CSC pattern: its sizes, index dtype and a digest of its arrays, or
+    ``blocks``, the digest of the blocks it expands (``BlockStructure.pattern_digest``: ``d²``
+    times fewer bytes to hash; 1.6 ms → 0.05 ms on parking-garage)."""
     dtypes = f"{indptr.dtype.str}{indices.dtype.str}"
-    return backend, int(indptr.size - 1), int(indices.size), dtypes, digest.digest()
+    key = digest(indptr, indices) if blocks is None else blocks
+    return backend, int(indptr.size - 1), int(indices.size), dtypes, key
 
 
 class AnalysisPool:

@@ -167,12 +167,13 @@ class CholeskySolver:
             H = H.copy()
             H.sum_duplicates()
         kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
-        key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices)
+        trusted = self._trusted is not None and all(
+            _same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
+        )
+        blocks = self._structure.pattern_digest() if trusted and self._structure is not None else None
+        key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, blocks)
         impl = ANALYSES.acquire(key)
         if impl is None:
-            trusted = self._trusted is not None and all(
-                _same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
-            )
             if not trusted:
                 pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
                 if (pattern != pattern.T).nnz:

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
+from ._analyses import digest
 from ._factors import FactorIndex, check_factor, exclusive_cumsum, index_dtype
 
 __all__ = ["BlockStructure"]
@@ -155,6 +156,7 @@ class BlockStructure:
         # The variables' graph (block CSC, both triangles): what a fill-reducing ordering reads.
         self._block_pattern = (exclusive_cumsum(np.bincount(bcol, minlength=nv)).astype(itype), brow.astype(itype))
         self._ordering: IntArray | None = None
+        self._digest: bytes | None = None
         var_of_col = np.repeat(np.arange(nv), dims)
         j_local = np.arange(n) - self.offsets[var_of_col]
         indptr = np.append(base[var_of_col] + j_local * col_len[var_of_col], nnz)
@@ -270,6 +272,14 @@ class BlockStructure:
             start = np.repeat(self.offsets[order] - exclusive_cumsum(dims)[:-1], dims)
             self._ordering = start + np.arange(self._n)
         return self._ordering
+
+    def pattern_digest(self) -> bytes:
+        """A digest of ``H``'s pattern through what determines it, the variables' dimensions and
+        block pattern (``d²`` times fewer bytes than its coordinates): the key under which
+        :data:`~manopt_lie.linalg._analyses.ANALYSES` pools its analysis. Computed once."""
+        if self._digest is None:
+            self._digest = digest(self.dims, *self._block_pattern) + b"blocks"
+        return self._digest
 
     # -- numeric assembly ----------------------------------------------------
 
