@@ -22,15 +22,28 @@ def matvec(m: FloatArray, v: FloatArray) -> FloatArray:
     return np.einsum("...ij,...j->...i", m, v)
 
 
+ONE_PRODUCT = 64
+"""Batches from which one matrix against many (:func:`product`, :func:`rotate_vectors`) is one BLAS call."""
+
+
+def _unbroadcast(m: FloatArray) -> FloatArray:
+    """``m`` itself, or its one matrix if its batch axes are a broadcast (zero strides, as
+    ``blockwise`` passes a single element against a batch)."""
+    if m.ndim > 2 and not any(m.strides[:-2]):
+        return m[(0,) * (m.ndim - 2)]
+    return m
+
+
 @_one.fast(_one.rotate_vectors, 2, 1, small=0)
 def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
-    """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``)."""
+    """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``). One ``R``
+    against a batch of at least :data:`ONE_PRODUCT` vectors (a point cloud moved by one pose) is
+    one BLAS product of the stacked rows, ``V Rᵀ``."""
     d = r.shape[-1]
+    one = _unbroadcast(r)
+    if one.ndim == 2 and v.ndim > 1 and v.size >= ONE_PRODUCT * d:
+        return (v.reshape(-1, d) @ one.T).reshape(np.broadcast_shapes(r.shape[:-2], v.shape[:-1]) + (d,))
     return np.stack([sum(r[..., i, j] * v[..., j] for j in range(d)) for i in range(d)], axis=-1)
-
-
-ONE_PRODUCT = 64
-"""Batches from which :func:`product` multiplies by a single right factor in one BLAS call."""
 
 
 def product(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -38,8 +51,7 @@ def product(a: FloatArray, b: FloatArray) -> FloatArray:
     zero strides, as ``blockwise`` passes it) against a batch of at least :data:`ONE_PRODUCT`
     matrices is one BLAS product of the stacked rows, ``(…·d, d) @ (d, k)``: NumPy's batched
     ``matmul`` calls BLAS once per 3×3 block, about ten times slower."""
-    if b.ndim > 2 and not any(b.strides[:-2]):
-        b = b[(0,) * (b.ndim - 2)]
+    b = _unbroadcast(b)
     if b.ndim == 2 and a.ndim > 2 and a.size >= ONE_PRODUCT * a.shape[-1] * a.shape[-2]:
         return (a.reshape(-1, a.shape[-1]) @ b).reshape(a.shape[:-1] + b.shape[-1:])
     return np.matmul(a, b)

@@ -1,9 +1,10 @@
 """One element against a large batch: the forms that multiply by the single factor once.
 
-``_matrix.product`` turns ``A_n @ B`` (one ``B``) into one BLAS product; ``rminus`` against a single
-``X`` goes through ``Log(X⁻¹Y) = Ad_{X⁻¹} Log(Y X⁻¹)``; SO(3) ``Log`` of a batch with a few angles
-beyond ~2π/3 selects Shepperd's column for those alone. Each must give what the element-by-element
-computation gives: the same numbers up to rounding (bit for bit for ``Log``), every branch included.
+``_matrix.product`` turns ``A_n @ B`` (one ``B``) into one BLAS product; ``rminus`` against a
+single ``X`` goes through ``Log(X⁻¹Y) = Ad_{X⁻¹} Log(Y X⁻¹)``; one ``X`` moving many points is
+``P Rᵀ``; SO(3) ``Log`` of a batch with a few angles beyond ~2π/3 selects Shepperd's column for
+those alone. Each must give what the element-by-element computation gives: the same numbers up
+to rounding (bit for bit for ``Log``), every branch included.
 """
 
 from __future__ import annotations
@@ -53,6 +54,21 @@ def test_rminus_against_one_element_equals_each_element(group, regime, rng):
         np.testing.assert_allclose(tau[i], one[0], rtol=0, atol=1e-13 * scale, err_msg=group_id(group))
         for a, b in ((j_y[i], one[1]), (j_x[i], one[2])):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * max(1.0, np.abs(b).max()), err_msg=group_id(group))
+
+
+@pytest.mark.parametrize("group", [g for g in GROUPS if g.point_dim in (2, 3)], ids=group_id)
+def test_one_element_acting_on_many_points_equals_each_action(group, rng):
+    x = group.exp(tangent(group, "random", (), rng))
+    for shape in ((N,), (4, N // 4)):
+        p = rng.standard_normal(shape + (group.point_dim,))
+        q = x.act(p)
+        assert q.shape == p.shape
+        flat, pts = q.reshape(-1, group.point_dim), p.reshape(-1, group.point_dim)
+        for i in range(0, flat.shape[0], 11):
+            np.testing.assert_allclose(flat[i], x.act(pts[i]), rtol=0, atol=1e-13 * max(1.0, np.abs(flat[i]).max()))
+    xs = group.exp(tangent(group, "random", (N,), rng))  # many elements, one point: broadcast alike
+    p1 = rng.standard_normal(group.point_dim)
+    np.testing.assert_allclose(xs.act(p1), np.stack([xs[i].act(p1) for i in range(N)]), rtol=0, atol=1e-12)
 
 
 def test_so3_log_of_a_mixed_batch_is_each_elements_log_bit_for_bit(rng):
