@@ -14,7 +14,8 @@ values (``factorize(data)``) and solves (``solve(b)``):
   and profit from BLAS-3 supernodes (``LLᵀ``: 26 ms vs QDLDL's 97 ms per
   factorization on ``sphere2500``, d = 6), sparse 2-D graphs from the simplicial
   ``LDLᵀ``, as fast there and ~30 MB lighter per 10⁵ poses than supernodes
-  (``benchmarks/bench_linalg.py``, ``benchmarks/bench_scaling.py``). ``LDLᵀ``
+  (``benchmarks/bench_linalg.py``, ``benchmarks/bench_scaling.py``); a solver bound
+  to a structure of 3-D poses asks for supernodes (``CholeskySolver``). ``LDLᵀ``
   does not fail on an indefinite matrix, so the signs of ``D`` are read after
   every factorization (one diagonal solve).
 - ``qdldl`` (optional package ``qdldl``): AMD ordering and elimination tree

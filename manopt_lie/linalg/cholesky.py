@@ -40,6 +40,10 @@ def _check_square(H: Any) -> sp.csc_matrix:
     return H if H.format == "csc" else H.tocsc()
 
 
+SUPERNODE_DIM = 6
+"""A structure whose variables all have at least this dimension is factored by supernodes."""
+
+
 class CholeskySolver:
     """Solve ``H x = b`` for sparse symmetric positive definite ``H`` of a fixed pattern.
 
@@ -65,7 +69,11 @@ class CholeskySolver:
     supernodal : bool, optional
         CHOLMOD only: ``True`` forces its supernodal ``LLᵀ`` (relaxed supernodes, which
         selected inversion wants), ``False`` its simplicial ``LDLᵀ``; ``None`` (the
-        default) lets its analysis choose from the flops per entry of the factor.
+        default) lets its analysis choose from the flops per entry of the factor, except
+        for a structure (:meth:`bind`) whose variables all have dimension ≥ 6 (3-D
+        poses), which gets supernodes: their dense 6×6 blocks make each supernode at
+        least six columns wide, and CHOLMOD's rule picked the simplicial kind on mid-size
+        3-D graphs where supernodes factor 1.2–1.7× faster (cubes of 10³ and 14³ poses).
 
     Attributes
     ----------
@@ -138,7 +146,10 @@ class CholeskySolver:
         """A fresh solver with these settings and no analysis, for one run
         (:class:`~manopt_lie.linalg.LinearSolver`); the structure's pattern is
         analysed at the first call (or taken from the pool of analyses)."""
-        solver = CholeskySolver(self.backend, rtol=self.rtol, supernodal=self.supernodal)
+        supernodal = self.supernodal
+        if supernodal is None and self.backend == "cholmod" and int(structure.dims.min()) >= SUPERNODE_DIM:
+            supernodal = True
+        solver = CholeskySolver(self.backend, rtol=self.rtol, supernodal=supernodal)
         solver._trusted = (structure.indptr, structure.indices)
         solver._structure = structure
         return solver

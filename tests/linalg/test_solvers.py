@@ -138,6 +138,21 @@ def test_cholmod_kind_can_be_chosen(rng):
         assert np.linalg.norm(x[kind] - x[True]) <= 1e-8 * np.linalg.norm(x[True])
 
 
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_cholmod_factors_six_dimensional_variables_by_supernodes(rng):
+    """Left to choose, a solver bound to a structure of 3-D poses (d = 6) asks CHOLMOD for
+    supernodes (no pivots D: LLᵀ); d = 3 stays CHOLMOD's choice (here LDLᵀ); an explicit kind wins."""
+    for d, expected in ((6, True), (3, None)):
+        S, blocks, residuals = pose_graph(rng, n_poses=60, d=d)
+        H, g = S.normal_equations(blocks, residuals)
+        solver = CholeskySolver("cholmod").bind(S)
+        solver(H, g)
+        assert solver.supernodal is expected
+        assert (solver._impl.pivots is None) == (d == 6)
+    explicit = CholeskySolver("cholmod", supernodal=False).bind(S)
+    assert explicit.supernodal is False
+
+
 def test_rejects_bad_matrices(solver):
     with pytest.raises(ValueError, match="not symmetric"):
         solver(sp.csc_matrix(np.array([[2.0, 1.0], [0.0, 2.0]])), np.ones(2))
