@@ -42,7 +42,8 @@ def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
     d = r.shape[-1]
     one = _unbroadcast(r)
     if one.ndim == 2 and v.ndim > 1 and v.size >= ONE_PRODUCT * d:
-        return (v.reshape(-1, d) @ one.T).reshape(np.broadcast_shapes(r.shape[:-2], v.shape[:-1]) + (d,))
+        if np.broadcast_shapes(r.shape[:-2], v.shape[:-1]) == v.shape[:-1]:  # v holds the whole batch
+            return (v.reshape(-1, d) @ one.T).reshape(v.shape)
     return np.stack([sum(r[..., i, j] * v[..., j] for j in range(d)) for i in range(d)], axis=-1)
 
 

@@ -37,6 +37,16 @@ def test_product_by_one_right_factor_is_the_batched_product(d, rng):
     np.testing.assert_array_equal(_matrix.product(a, both), np.matmul(a, both))
 
 
+def test_rotating_vectors_by_one_rotation_broadcast_wider_than_the_vectors(rng):
+    """A rotation broadcast (zero strides) to more batch axes than the vectors have: the
+    product must still broadcast to the rotation's batch, not to the vectors'."""
+    r = _so3.exp(rng.standard_normal(3))
+    v = rng.standard_normal((N, 3))
+    wide = _matrix.rotate_vectors(np.broadcast_to(r, (3, N, 3, 3)), v)
+    assert wide.shape == (3, N, 3)
+    np.testing.assert_allclose(wide, np.broadcast_to(v @ r.T, (3, N, 3)), rtol=0, atol=1e-14)
+
+
 @pytest.mark.parametrize("group, regime", cases(GROUPS))
 def test_rminus_against_one_element_equals_each_element(group, regime, rng):
     """``Y ⊖ X`` for a batch ``Y`` and one ``X`` (with Jacobians) is the single-element result for
