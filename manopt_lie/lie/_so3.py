@@ -236,20 +236,22 @@ def _shepperd(r: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatA
         # argmax would pick it), no selection, and its w = 1 + tr R = 4w² > 0.
         return d21, d02, d10, w
     if r.ndim == 2:  # one element (a 0-d selection below would not be writable)
-        return _shepperd_select(r, d0, d1, d2, trace)
+        return _shepperd_select(r, (d0, d1, d2, trace), (d21, d02, d10))
     # The few elements with a larger x, y or z column alone go through the selection.
     x, y, z, rest = d21, d02, d10, ~w_largest  # new arrays, written in place
-    x[rest], y[rest], z[rest], w[rest] = _shepperd_select(r[rest], d0[rest], d1[rest], d2[rest], trace[rest])
+    diagonal, skew = (d0[rest], d1[rest], d2[rest], trace[rest]), (x[rest], y[rest], z[rest])
+    x[rest], y[rest], z[rest], w[rest] = _shepperd_select(r[rest], diagonal, skew)
     return x, y, z, w
 
 
 def _shepperd_select(
-    r: FloatArray, d0: FloatArray, d1: FloatArray, d2: FloatArray, trace: FloatArray
+    r: FloatArray, diagonal: tuple[FloatArray, ...], skew: tuple[FloatArray, ...]
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`_shepperd`'s column with the largest diagonal entry, for any rotations."""
+    """:func:`_shepperd`'s column with the largest diagonal entry, for any rotations, given the
+    diagonal entries ``(d0, d1, d2, tr R)`` and the skew parts ``(d21, d02, d10)``."""
     r01, r02, r10, r12, r20, r21 = r[..., 0, 1], r[..., 0, 2], r[..., 1, 0], r[..., 1, 2], r[..., 2, 0], r[..., 2, 1]
-    d10, d02, d21 = r10 - r01, r02 - r20, r21 - r12
-    diag = np.stack([d0, d1, d2, trace], -1)
+    d21, d02, d10 = skew
+    diag = np.stack(diagonal, -1)
     k = np.argmax(diag, axis=-1)
     s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
     big = 1.0 + np.take_along_axis(diag, k[..., None], -1)[..., 0]
