@@ -55,6 +55,7 @@ class _Legs:
 class _Region:
     radius: float | None
     legs: _Legs | None = None
+    accepted: bool = True  # the last trial was accepted: keep the next one's Jacobians
 
 
 def dogleg_step(
@@ -185,9 +186,10 @@ class Dogleg(NonlinearLeastSquares):
         if not predicted > 0:
             return _Step(x, lin.cost, math.nan, False, {**extra, "rho": math.nan}, _no_descent(lin))
         x_new = run.manifold.retr(x, delta)
-        f_new = run.cost(x_new)
+        f_new = self._trial_cost(run, problem, x_new, region.accepted)
         rho = (lin.cost - f_new) / predicted
         extra["rho"] = rho
+        region.accepted = rho > 0
         length = float(np.linalg.norm(delta))
         if rho < 0.25 or not math.isfinite(rho):
             region.radius = 0.25 * length

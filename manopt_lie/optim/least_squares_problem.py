@@ -36,6 +36,8 @@ from .problem import Problem
 
 FloatArray = NDArray[np.float64]
 Residual = Callable[..., Any]
+_Evaluation = tuple[float, list[FloatArray], list[FloatArray], list[FloatArray]]
+"""``(cost, residuals, Jacobian blocks, IRLS weights)`` of every factor at one point."""
 
 
 @dataclass(frozen=True)
@@ -312,7 +314,8 @@ class LeastSquaresProblem(Problem):
         """Residuals, IRLS weights, cost, gradient and Gauss-Newton Hessian at ``x``.
 
         The last one is remembered per thread, keyed on the value of ``x`` (a
-        private copy of it), so asking again at the same point costs a comparison.
+        private copy of it), so asking again at the same point costs a comparison;
+        after :meth:`trial_cost` at the same point only ``H`` and ``g`` are assembled.
 
         Raises
         ------
@@ -323,7 +326,46 @@ class LeastSquaresProblem(Problem):
         memo: tuple[Any, Linearization] | None = getattr(self._local, "linearization", None)
         if memo is not None and same_point(memo[0], x):
             return memo[1]
-        key = snapshot(x)
+        kept = self._kept(x)
+        key, evaluation = kept if kept is not None else (snapshot(x), self._evaluate(x))
+        cost, residuals, blocks, weights = evaluation
+        structure = self._structure or self._build_structure(residuals)
+        # Plain least squares weighs every edge by 1: the assembly skips the product.
+        scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
+        h, g = structure.normal_equations(blocks, residuals, scaling)
+        if self._fixed_diagonal is not None:  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
+            h = structure.add_diagonal(h, self._fixed_diagonal, inplace=True)
+        lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
+        self._local.linearization = (key, lin)
+        return lin
+
+    def trial_cost(self, x: Any) -> float:
+        """The cost at a trial point ``x``, its residuals and Jacobians kept (per thread) for
+        a :meth:`linearize` at ``x`` that may follow, which then only assembles ``H`` and ``g``.
+
+        For optimizers that linearize where a trial is accepted: one evaluation of the
+        residuals instead of two, for the Jacobians' work wasted on a rejected trial. The
+        trial kept before is dropped first, so at most one set of Jacobians is held.
+        """
+        self._local.kept = None
+        evaluation = self._evaluate(x)
+        self._local.kept = (snapshot(x), evaluation)
+        return evaluation[0]
+
+    def kept_at(self, x: Any) -> bool:
+        """Whether the residuals and Jacobians of :meth:`trial_cost` at ``x`` are kept (so
+        that :meth:`linearize` at ``x`` evaluates no residual)."""
+        kept = getattr(self._local, "kept", None)
+        return kept is not None and same_point(kept[0], x)
+
+    def _kept(self, x: Any) -> tuple[Any, _Evaluation] | None:
+        """What :meth:`trial_cost` kept if it was at ``x`` (taken: it is used once), else ``None``."""
+        kept = getattr(self._local, "kept", None)
+        self._local.kept = None
+        return kept if kept is not None and same_point(kept[0], x) else None
+
+    def _evaluate(self, x: Any) -> _Evaluation:
+        """``(cost, residuals, Jacobian blocks, IRLS weights)`` of every factor at ``x``, shapes checked."""
         residuals, blocks, weights, cost = [], [], [], 0.0
         for k, f in enumerate(self._factors):
             r, jacobians = f.residual(*self._points(x, k), jac=True)
@@ -342,15 +384,7 @@ class LeastSquaresProblem(Problem):
             blocks.append(self._jacobian_block(k, jacobians))
             residuals.append(r)
             weights.append(f.robust_loss.weight(s))
-        structure = self._structure or self._build_structure(residuals)
-        # Plain least squares weighs every edge by 1: the assembly skips the product.
-        scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
-        h, g = structure.normal_equations(blocks, residuals, scaling)
-        if self._fixed_diagonal is not None:  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
-            h = structure.add_diagonal(h, self._fixed_diagonal, inplace=True)
-        lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
-        self._local.linearization = (key, lin)
-        return lin
+        return cost, residuals, blocks, weights
 
     def _fixed_slots(self, k: int) -> list[tuple[NDArray[np.intp], int, int]]:
         """Per slot of factor ``k`` holding fixed variables: those edges and the slot's column range in

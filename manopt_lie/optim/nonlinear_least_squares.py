@@ -58,6 +58,7 @@ class _Step:
 class _Damping:
     lam: float
     nu: float
+    accepted: bool = True  # the last trial was accepted: keep the next one's Jacobians
 
 
 _DAMPINGS = ("identity", "diagonal")
@@ -153,9 +154,19 @@ class NonlinearLeastSquares(Optimizer):
 
     @staticmethod
     def _linearize(run: Run, problem: LeastSquaresProblem, x: Any) -> Linearization:
-        run.nfev += 1
+        """The linearization at an accepted point (its cost not evaluated again if the
+        trial kept its residuals: :meth:`_trial_cost`)."""
+        run.nfev += not problem.kept_at(x)
         run.ngev += 1
         return problem.linearize(x)
+
+    @staticmethod
+    def _trial_cost(run: Run, problem: LeastSquaresProblem, x: Any, keep: bool) -> float:
+        """The cost at a trial point; with ``keep`` its residuals and Jacobians are kept for
+        the linearization if it is accepted (:meth:`LeastSquaresProblem.trial_cost`): worth
+        it when acceptance is likely — after an accepted step — and the Jacobians' work
+        wasted otherwise."""
+        return run.cost(x, problem.trial_cost if keep else None)
 
     @staticmethod
     def _newton_system_step(solver: LinearSolver, h: Any, g: Any) -> tuple[Any, dict[str, float]]:
@@ -215,8 +226,13 @@ class GaussNewton(NonlinearLeastSquares):
         d_norm = float(np.linalg.norm(delta))
         if not slope < 0:
             return _Step(x, lin.cost, math.nan, False, {"alpha": 0.0, **extra}, _no_descent(lin))
+        first = iter((True,))  # the full step's Jacobians are kept (usually accepted), no backtrack's
+
+        def cost(point: Any) -> float:
+            return self._trial_cost(run, problem, point, next(first, False))
+
         ls = armijo(
-            run.cost, run.manifold, x, lin.cost, delta, d_norm, slope, 1.0,
+            cost, run.manifold, x, lin.cost, delta, d_norm, slope, 1.0,
             sufficient_decrease=self.sufficient_decrease, max_backtracks=self.max_backtracks,
         )  # fmt: skip
         if not ls.success:
@@ -326,9 +342,10 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         if not predicted > 0:  # (H + λD) is SPD, so an exact solve always predicts a decrease unless g = 0
             return _Step(x, lin.cost, math.nan, False, {**extra, "rho": math.nan}, _no_descent(lin))
         x_new = run.manifold.retr(x, delta)
-        f_new = run.cost(x_new)
+        f_new = self._trial_cost(run, problem, x_new, state.accepted)
         rho = (lin.cost - f_new) / predicted
         extra["rho"] = rho
+        state.accepted = rho > 0
         if rho > 0:
             # Floored: after many successes λ would underflow to 0, and 0·ν = 0 on a failure.
             state.lam = max(state.lam / self.damping_factor, 1e-15)

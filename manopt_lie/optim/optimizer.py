@@ -189,11 +189,13 @@ class Run:
         self.ngev += 1
         return f, g, self.norm(x0, g)
 
-    def cost(self, x: Any) -> float:
-        """``f(x)`` at a trial point; ``+inf`` if it is not finite (``nan``, ``±inf``), so
-        that every acceptance test rejects the point."""
+    def cost(self, x: Any, evaluate: Callable[[Any], float] | None = None) -> float:
+        """``f(x)`` at a trial point — by ``evaluate(x)`` if given (e.g.
+        :meth:`~manopt_lie.optim.LeastSquaresProblem.trial_cost`), else ``problem.cost`` —;
+        ``+inf`` if it is not finite (``nan``, ``±inf``), so that every acceptance test
+        rejects the point."""
         self.nfev += 1
-        f = self.problem.cost(x)
+        f = (evaluate or self.problem.cost)(x)
         if math.isfinite(f):
             return f
         self.rejected_nonfinite += 1

@@ -182,3 +182,66 @@ def test_loss_weights_are_derivatives(loss):
     h = 1e-6
     np.testing.assert_allclose((loss.rho(s + h) - loss.rho(s - h)) / (2 * h), loss.weight(s), atol=1e-6)
     np.testing.assert_allclose(loss.rho(np.array([1e-8])), 1e-8, rtol=1e-6)  # ρ(s) ≈ s near 0
+
+
+def _counting(problem):
+    """The problem with its one factor's residual calls counted, by ``jac``."""
+    calls = {True: 0, False: 0}
+    (factor,) = problem.factors
+
+    def residual(xi, xj, jac=False):
+        calls[jac] += 1
+        return factor.residual(xi, xj, jac)
+
+    counted = Factor(factor.variables, residual, name=factor.name)
+    return LeastSquaresProblem(problem.manifold, [counted], fixed=np.flatnonzero(problem.fixed)), calls
+
+
+def test_trial_cost_keeps_the_jacobians_for_the_linearization_at_that_point():
+    problem, _, x0 = pose_chain(SE3, n=12, closures=4, noise=0.01)
+    counted, calls = _counting(problem)
+    f = counted.trial_cost(x0)
+    assert calls == {True: 1, False: 0} and f == pytest.approx(problem.cost(x0), rel=1e-14)
+    assert counted.kept_at(x0)
+    lin, fresh = counted.linearize(x0), problem.linearize(x0)
+    assert calls == {True: 1, False: 0} and not counted.kept_at(x0)  # used once, not evaluated again
+    assert lin.cost == fresh.cost
+    np.testing.assert_array_equal(lin.grad, fresh.grad)
+    np.testing.assert_array_equal(lin.hessian.toarray(), fresh.hessian.toarray())
+    # Kept at another point (a copy of its value: moving x afterwards does not fool it).
+    x1 = x0.rplus(1e-3 * np.ones((12, 6)))
+    counted.trial_cost(x1)
+    assert not counted.kept_at(x0)
+    counted.linearize(x0.rplus(np.zeros((12, 6))))  # x0's value: remembered, nothing evaluated
+    assert calls == {True: 2, False: 0}
+    counted.linearize(x1.rplus(1e-3 * np.ones((12, 6))))  # elsewhere: evaluated, the kept trial dropped
+    assert calls == {True: 3, False: 0} and not counted.kept_at(x1)
+
+
+@pytest.mark.parametrize("make", [LevenbergMarquardt, GaussNewton, Dogleg])
+def test_accepted_trials_are_evaluated_once(make):
+    """From a good start every trial is accepted: one residual evaluation per iteration
+    (the trial's, with Jacobians, reused by the linearization there), none without Jacobians."""
+    problem, _, x0 = pose_chain(SE3, n=30, closures=8, noise=0.01)
+    counted, calls = _counting(problem)
+    res = make(rel_cost_decrease=1e-12, grad_rtol=1e-12).solve(counted, x0)
+    accepted = int(np.sum(~np.isnan(res.history.step[1:])))
+    assert accepted == res.nit > 0
+    assert calls[False] == 0 and calls[True] == 1 + res.nit  # x₀'s linearization, then the trials
+    assert res.nfev == 1 + res.nit
+    reference = make(rel_cost_decrease=1e-12, grad_rtol=1e-12).solve(problem, x0)
+    assert res.fun == reference.fun and res.nit == reference.nit
+
+
+def test_a_rejected_trial_keeps_no_jacobians_for_the_next():
+    """Trial i keeps its Jacobians iff trial i−1 was accepted (the first always): after a
+    rejection they would likely be wasted."""
+    problem, _, x0 = pose_chain(SE2, n=20, closures=6)
+    far = x0.rplus(3.0 * np.random.default_rng(2).standard_normal((20, 3)))  # a poor start: 4 rejections
+    counted, calls = _counting(problem)
+    res = LevenbergMarquardt(max_iterations=60).solve(counted, far)
+    accepted = ~np.isnan(res.history.step[1:])
+    keep = np.concatenate([[True], accepted[:-1]])
+    assert (~accepted).sum() > 0
+    assert calls[False] == int((~keep).sum())
+    assert calls[True] == 1 + int(keep.sum()) + int((accepted & ~keep).sum())

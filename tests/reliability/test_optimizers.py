@@ -426,8 +426,10 @@ def interrupting(kind, where, after):
         return rayleigh(cost=cost, egrad=egrad), X0
 
     def ticking(residual):
+        # "cost": every evaluation (a trial's may come with Jacobians, kept for the
+        # linearization); "gradient": those with Jacobians.
         def wrapped(xi, xj, jac):
-            if (where == "cost") != jac:
+            if where == "cost" or jac:
                 tick()
             return residual(xi, xj, jac)
 
