@@ -153,6 +153,39 @@ def test_cholmod_factors_six_dimensional_variables_by_supernodes(rng):
     assert explicit.supernodal is False
 
 
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+@pytest.mark.parametrize("chunk", [7, 100, 1 << 16])
+def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
+    """CVXOPT's copy of the lower triangle, joined from pieces of ``chunk`` entries (one column
+    may hold more than a piece), is the triangle of ``H`` in CSC order; the factor solves."""
+    from manopt_lie.linalg import _backends
+
+    S, blocks, residuals = pose_graph(rng, n_poses=40, d=6)
+    H, g = S.normal_equations(blocks, residuals)
+    monkeypatch.setattr(_backends, "CHUNK", chunk)
+    impl = _backends._CHOLMOD(H.indptr, H.indices)
+    lower = sp.tril(H).tocsc()
+    np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
+    np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), lower.indptr)
+    np.testing.assert_array_equal(H.data[impl._lower], lower.data)
+    impl.factorize(H.data)
+    x = impl.solve(g)
+    assert np.linalg.norm(H @ x - g) <= 1e-9 * np.linalg.norm(g)
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_cholmod_refuses_a_pattern_that_is_not_canonical(monkeypatch):
+    """Unsorted row indices in a column (which CVXOPT would reorder silently) are refused."""
+    from manopt_lie.linalg import _backends
+
+    H = sp.csc_matrix(np.array([[4.0, 1.0, 1.0], [1.0, 4.0, 1.0], [1.0, 1.0, 4.0]]))
+    indices = H.indices.copy()
+    indices[[1, 2]] = indices[[2, 1]]  # column 0: rows 0, 2, 1
+    monkeypatch.setattr(_backends, "CHUNK", 2)
+    with pytest.raises(ValueError, match="canonical"):
+        _backends._CHOLMOD(H.indptr, indices)
+
+
 def test_rejects_bad_matrices(solver):
     with pytest.raises(ValueError, match="not symmetric"):
         solver(sp.csc_matrix(np.array([[2.0, 1.0], [0.0, 2.0]])), np.ones(2))
