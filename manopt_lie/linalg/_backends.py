@@ -65,11 +65,15 @@ def _columns(indptr: IndexArray) -> NDArray[np.signedinteger]:
     return np.repeat(np.arange(indptr.size - 1, dtype=indptr.dtype), np.diff(indptr))
 
 
-def _check_diagonal(cols: NDArray[np.signedinteger], diag: NDArray[np.bool_]) -> None:
-    """Raise if some column stores no diagonal entry (``diag``: entries on the diagonal)."""
-    n = int(cols[-1]) + 1 if cols.size else 0
-    if np.count_nonzero(diag) != n:
-        missing = np.setdiff1d(np.arange(n), cols[diag])[0]
+def _check_diagonal(
+    cols: NDArray[np.signedinteger], diag: NDArray[np.bool_], c0: int = 0, c1: int | None = None
+) -> None:
+    """Raise if some column of ``c0 … c1 − 1`` (all of ``cols`` by default) stores no diagonal
+    entry (``cols``: the column of each stored entry; ``diag``: entries on the diagonal)."""
+    if c1 is None:
+        c1 = int(cols[-1]) + 1 if cols.size else 0
+    if np.count_nonzero(diag) != c1 - c0:
+        missing = np.setdiff1d(np.arange(c0, c1), cols[diag])[0]
         raise ValueError(f"H stores no diagonal entry in column {missing}: it cannot be positive definite")
 
 
@@ -167,9 +171,10 @@ CHUNK = 1 << 16
 """Entries of ``H`` per piece of CVXOPT's lower triangle (:func:`_lower_triangle`)."""
 
 
-def _lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> Any:
+def _lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tuple[Any, NDArray[np.signedinteger]]:
     """The lower triangle of the pattern as a CVXOPT sparse matrix of ones (the symbolic
-    analysis reads the pattern only), built column range by column range and joined.
+    analysis reads the pattern only), built column range by column range and joined, and
+    the positions of its entries among ``H``'s (in the index dtype: int32 for int32 patterns).
 
     CVXOPT builds a sparse matrix from triplets only, through 64-bit row and column
     indices and a sorting workspace, each as large as the matrix itself; built in pieces of
@@ -180,24 +185,27 @@ def _lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> Any
     Raises
     ------
     ValueError
-        If the pattern is not canonical CSC (unsorted indices or duplicates in a column),
-        which CVXOPT would silently reorder.
+        If a column stores no diagonal entry, or the pattern is not canonical CSC (unsorted
+        indices or duplicates in a column), which CVXOPT would silently reorder.
     """
     n = indptr.size - 1
     bounds = np.unique(np.concatenate([np.searchsorted(indptr, np.arange(0, int(indptr[-1]), CHUNK)), [n]]))
-    pieces = []
+    pieces, positions = [], []
     for c0, c1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
         start, stop = int(indptr[c0]), int(indptr[c1])
-        cols = np.repeat(np.arange(c1 - c0, dtype=np.int64), np.diff(indptr[c0 : c1 + 1]))
+        cols = np.repeat(np.arange(c0, c1, dtype=np.int64), np.diff(indptr[c0 : c1 + 1]))
         rows = indices[start:stop]
-        lower = rows >= cols + c0
-        rows, cols = rows[lower].astype(np.int64), cols[lower]
+        _check_diagonal(cols, rows == cols, c0, c1)
+        lower = rows >= cols
+        rows, cols = rows[lower].astype(np.int64), cols[lower] - c0
         piece = cvxopt.spmatrix(1.0, cvxopt.matrix(rows), cvxopt.matrix(cols), (n, c1 - c0))
         same = np.array_equal(np.asarray(piece.I).ravel(), rows) and np.array_equal(np.asarray(piece.J).ravel(), cols)
         if not same:
             raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
         pieces.append([piece])
-    return pieces[0][0] if len(pieces) == 1 else cvxopt.sparse(pieces)
+        positions.append((start + np.flatnonzero(lower)).astype(indices.dtype))
+    joined = pieces[0][0] if len(pieces) == 1 else cvxopt.sparse(pieces)
+    return joined, np.concatenate(positions)
 
 
 class _CHOLMOD:
@@ -217,13 +225,7 @@ class _CHOLMOD:
         from cvxopt import cholmod
 
         self._cvxopt, self._cholmod = cvxopt, cholmod
-        cols = _columns(indptr)
-        _check_diagonal(cols, indices == cols)
-        lower = indices >= cols
-        del cols
-        self._lower = np.flatnonzero(lower).astype(indices.dtype)  # int32 for int32 patterns: half the memory
-        del lower
-        self._A = _lower_triangle(cvxopt, indptr, indices)
+        self._A, self._lower = _lower_triangle(cvxopt, indptr, indices)
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:

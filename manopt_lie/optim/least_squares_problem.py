@@ -360,9 +360,9 @@ class LeastSquaresProblem(Problem):
 
     def _kept(self, x: Any) -> tuple[Any, _Evaluation] | None:
         """What :meth:`trial_cost` kept if it was at ``x`` (taken: it is used once), else ``None``."""
-        kept = getattr(self._local, "kept", None)
+        kept = self._local.kept if self.kept_at(x) else None
         self._local.kept = None
-        return kept if kept is not None and same_point(kept[0], x) else None
+        return kept
 
     def _evaluate(self, x: Any) -> _Evaluation:
         """``(cost, residuals, Jacobian blocks, IRLS weights)`` of every factor at ``x``, shapes checked."""
