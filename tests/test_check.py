@@ -152,6 +152,23 @@ def test_wrong_hessian_fails_with_slope_two() -> None:
     assert report.slope == pytest.approx(2.0, abs=0.1)
 
 
+def test_round_off_is_measured_not_assumed() -> None:
+    """``f = 60 + εx³ − x⁴`` at 0 along 1: the remainder ``εt³ − t⁴`` is cubic only for
+    ``t ≪ ε``; the assumed floor ``10⁻¹²|f|`` left only the bending stretch (slope 2.86),
+    the measured round-off (``~10⁻¹⁵|f|``) leaves the cubic one."""
+    eps = 0.05
+    problem = Problem(
+        Euclidean(1),
+        lambda x: float(60.0 + eps * x[0] ** 3 - x[0] ** 4),
+        egrad=lambda x: 3 * eps * x**2 - 4 * x**3,
+        ehess=lambda x, u: (6 * eps * x - 12 * x**2) * u,
+    )
+    report = check_hessian(problem, np.zeros(1), np.ones(1))
+    assert report.passed, report
+    assert report.slope == pytest.approx(3.0, abs=0.05)
+    assert report.t[report.window[0]] < 1e-3  # below where 10⁻¹²|f| cut it off
+
+
 def test_asymmetric_hessian_fails() -> None:
     S, M = Sphere(N), np.triu(A)
     problem = sphere_problem(egrad=egrad, rhess=lambda x, v: S.proj(x, M @ v))

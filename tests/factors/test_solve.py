@@ -111,7 +111,7 @@ def test_reach_the_truth(rng, d, optimizer, rn):
 @pytest.mark.parametrize("d", [2, 3])
 def test_the_gradient_of_the_whole_problem(rng, d):
     manifold, factors, x0, _, _ = world(rng, d)
-    assert check_gradient(LeastSquaresProblem(manifold, factors), x0).passed
+    assert check_gradient(LeastSquaresProblem(manifold, factors), x0, rng=rng).passed
 
 
 def test_a_pose_graph_on_power(rng):

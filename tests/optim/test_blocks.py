@@ -68,7 +68,7 @@ def test_poses_and_landmarks_reach_the_truth(rng, optimizer, euclidean):
 def test_the_gradient_and_the_layout(rng):
     manifold, factors, x0, _, _ = landmark_world(rng)
     problem = LeastSquaresProblem(manifold, factors)  # nothing fixed: the gradient is the whole derivative
-    assert check_gradient(problem, x0).passed
+    assert check_gradient(problem, x0, rng=rng).passed
     g = problem.grad(x0)
     assert g.shape == (manifold.size,) == (10 * 3 + 6 * 2,)
     poses, landmarks = manifold.split(g)

@@ -97,8 +97,8 @@ def test_exact_chordal_hessian_passes_the_checkers(group, rng):
     hessian = costs.ChordalHessian(manifold, edges, z, w, np.zeros(0, dtype=np.int64))
     problem = LeastSquaresProblem(manifold, [costs.chordal_factor(edges, z, w)], hessian=hessian)
     x = group.random(rng, (6,))
-    assert check_gradient(problem, x).passed
-    report = check_hessian(problem, x)
+    assert check_gradient(problem, x, rng=rng).passed
+    report = check_hessian(problem, x, rng=rng)
     assert report.passed, report.message
     # f = tr(X Q Xᵀ) on the stacked top rows.
     rows = x.as_matrix()[:, : group.point_dim, :]
