@@ -1,5 +1,6 @@
 """The fused kernel of the between factor on SE(2) and SE(3): residuals, right Jacobians and
-whitening of all edges in one pass, the Jacobians of both slots side by side in one array.
+whitening of the edges in one pass per :data:`EDGE_CHUNK` edges, the Jacobians of both slots side
+by side in one array.
 
 With ``Y = X_i⁻¹ X_j`` and ``E = Z⁻¹ Y`` (homogeneous matrices, batched), the whitened
 residual and its right Jacobians (CONVENTIONS §4) are
@@ -25,9 +26,15 @@ from numpy.typing import NDArray
 
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 
-__all__ = ["FUSED_GROUPS", "between_kernel"]
+__all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
 
 FloatArray = NDArray[np.float64]
+
+EDGE_CHUNK = 8192
+"""Edges per pass of the kernel: the temporaries of 8192 edges (up to a few MiB) are reused
+from pass to pass; those of a whole 10⁵-edge graph would be paged in anew by every step
+(measured: SE(3), 1.2·10⁵ edges, 120 ms in passes of 8192, 176 ms in one; SE(2), 1.1·10⁶
+edges, 468 against 1197 ms)."""
 
 FUSED_GROUPS: dict[type[LieGroup], tuple[ModuleType, int]] = {SE2: (_se2, 2), SE3: (_se3, 3)}
 """Groups with a fused between kernel: their array kernels and the dimension ``d`` of ``SE(d)``."""
@@ -64,28 +71,40 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
     kernels, d = FUSED_GROUPS[group]
     k = group.dim
     L = sqrt_information
+    per_edge = L is not None and L.ndim == 3
 
-    def whiten(r: FloatArray) -> FloatArray:
+    def whiten(r: FloatArray, a: int, b: int) -> FloatArray:
         if L is None:
             return r
-        if L.ndim == 2:
+        if not per_edge:
             return r @ L.T
-        return np.matmul(L, r[:, :, None])[:, :, 0]
+        return np.matmul(L[a:b], r[:, :, None])[:, :, 0]
 
-    def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
-        y = np.matmul(_inverse(xi.as_matrix(), d), xj.as_matrix())
-        r = kernels.log(np.matmul(z_inv, y))
-        if not jac:
-            return whiten(r)
-        out = np.empty((len(r), k, 2 * k))
-        j_i, j_j = out[:, :, :k], out[:, :, k:]
+    def one_pass(mi: FloatArray, mj: FloatArray, a: int, b: int, r_out: FloatArray, j_out: FloatArray | None) -> None:
+        """Edges ``a:b``: ``r_out[a:b]`` and, unless ``j_out`` is None, ``j_out[a:b]``."""
+        y = np.matmul(_inverse(mi[a:b], d), mj[a:b])
+        r = kernels.log(np.matmul(z_inv[a:b], y))
+        r_out[a:b] = whiten(r, a, b)
+        if j_out is None:
+            return
+        j_i, j_j = j_out[a:b, :, :k], j_out[a:b, :, k:]
         jr_inv = kernels.jr_inv(r)
         if L is None:
             j_j[...] = jr_inv
         else:
-            np.matmul(L, jr_inv, out=j_j)
+            np.matmul(L[a:b] if per_edge else L, jr_inv, out=j_j)
         np.matmul(j_j, kernels.adjoint(_inverse(y, d)), out=j_i)
         np.negative(j_i, out=j_i)
-        return whiten(r), [j_i, j_j]
+
+    def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
+        mi, mj = xi.as_matrix(), xj.as_matrix()
+        m = len(mi)
+        r_out = np.empty((m, k))
+        j_out = np.empty((m, k, 2 * k)) if jac else None
+        for a in range(0, m, EDGE_CHUNK):  # a few chunks: their temporaries are reused, not paged in anew
+            one_pass(mi, mj, a, min(a + EDGE_CHUNK, m), r_out, j_out)
+        if j_out is None:
+            return r_out
+        return r_out, [j_out[:, :, :k], j_out[:, :, k:]]
 
     return residual

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from manopt_lie import SE2, SE3, SE23, SO2, SO3, Rn, Sim3
-from manopt_lie.factors import Diagonal, Information, Isotropic, between_factor, prior_factor, rotation_factor
+from manopt_lie.factors import Diagonal, Information, Isotropic, _poses, between_factor, prior_factor, rotation_factor
 from manopt_lie.lie import LieGroup
 from manopt_lie.optim.losses import Huber
 
@@ -48,6 +48,29 @@ def test_between_jacobians(rng, group, regime):
     assert_jacobians(factor, [xi, xj])
     noise = Information(np.eye(group.dim) * rng.uniform(1, 4, group.dim))
     assert_jacobians(between_factor(pairs(), z, noise), [xi, xj])
+
+
+@pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
+@pytest.mark.parametrize("noise", ["unit", "shared", "per edge"])
+def test_the_fused_kernel_in_passes_equals_one_pass(rng, group, noise, monkeypatch):
+    """The SE(d) kernel runs in passes of ``EDGE_CHUNK`` edges; passes of 5 (the last one
+    short) give what one pass gives."""
+    xi, xj, z = group.random(rng, (M,)), group.random(rng, (M,)), group.random(rng, (M,))
+    diag = rng.uniform(1, 4, (M, group.dim))
+    model = {
+        "unit": None,
+        "shared": Information(np.diag(diag[0])),
+        "per edge": Information(diag[:, :, None] * np.eye(group.dim)),
+    }[noise]
+    factor = between_factor(pairs(), z) if model is None else between_factor(pairs(), z, model)
+    r, (j_i, j_j) = factor.residual(xi, xj, jac=True)
+    monkeypatch.setattr(_poses, "EDGE_CHUNK", 5)
+    r5, (j_i5, j_j5) = factor.residual(xi, xj, jac=True)
+    np.testing.assert_allclose(r5, r, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(j_i5, j_i, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(j_j5, j_j, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(factor.residual(xi, xj), r, rtol=0, atol=1e-15)
+    assert j_i5.base is j_j5.base  # the two slots' halves of one array, as in one pass
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
