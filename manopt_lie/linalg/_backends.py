@@ -39,6 +39,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from ._memory import TRIM_ENTRIES, release_freed_memory
 from .errors import SingularSystemError
 
 __all__ = ["BACKENDS", "Backend", "available_backends", "surrogate_values"]
@@ -245,6 +246,8 @@ class _CHOLMOD:
             finally:
                 cholmod.options.clear()
                 cholmod.options.update(saved)
+        if self._lower.size >= TRIM_ENTRIES:
+            release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
 
     def factorize(self, data: FloatArray) -> None:
         self._A.V = self._cvxopt.matrix(np.ascontiguousarray(data[self._lower], dtype=np.float64))

@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import platform
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from manopt_lie import ShapeError
-from manopt_lie.linalg import BlockStructure, CholeskySolver, SingularSystemError, block_jacobi, pcg_solve
+from manopt_lie.linalg import (
+    BlockStructure,
+    CholeskySolver,
+    SingularSystemError,
+    _backends,
+    _memory,
+    block_jacobi,
+    pcg_solve,
+)
+from manopt_lie.linalg._analyses import ANALYSES
 
 from .helpers import pose_graph, random_factor_graph, random_values
 
@@ -252,3 +263,30 @@ def test_pcg_errors(system):
         pcg_solve(indefinite, np.ones(3), preconditioner="jacobi")
     with pytest.raises(SingularSystemError, match="non-positive curvature"):
         pcg_solve(indefinite, np.ones(3), preconditioner=None)
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_cholmod_hands_a_large_analysis_transients_back(rng, monkeypatch):
+    """An analysis of at least ``TRIM_ENTRIES`` lower-triangle entries returns the heap's free
+    pages to the system once (glibc's ``malloc_trim``), a smaller one does not; both solve alike."""
+    calls: list[int] = []
+    monkeypatch.setattr(_backends, "release_freed_memory", lambda: calls.append(1) or True)
+    S, blocks, residuals = pose_graph(rng, n_poses=30, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    lower = sp.tril(H).nnz
+    x = {}
+    for threshold, expected in ((lower + 1, 0), (lower, 1)):
+        monkeypatch.setattr(_backends, "TRIM_ENTRIES", threshold)
+        ANALYSES.clear()
+        calls.clear()
+        x[threshold] = CholeskySolver("cholmod")(H, g)
+        assert len(calls) == expected
+    np.testing.assert_allclose(x[lower], x[lower + 1], rtol=1e-12, atol=0)
+
+
+def test_release_freed_memory_is_glibc_malloc_trim_or_nothing(monkeypatch):
+    if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
+        assert _memory._TRIM is not None
+    assert isinstance(_memory.release_freed_memory(), bool)
+    monkeypatch.setattr(_memory, "_TRIM", None)
+    assert _memory.release_freed_memory() is False
