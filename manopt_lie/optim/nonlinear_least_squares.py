@@ -165,7 +165,9 @@ class NonlinearLeastSquares(Optimizer):
         """The cost at a trial point; with ``keep`` its residuals and Jacobians are kept for
         the linearization if it is accepted (:meth:`LeastSquaresProblem.trial_cost`): worth
         it when acceptance is likely — after an accepted step — and the Jacobians' work
-        wasted otherwise."""
+        wasted otherwise. A trial without ``keep`` drops what an earlier one kept."""
+        if not keep:
+            problem.discard_trial()
         return run.cost(x, problem.trial_cost if keep else None)
 
     @staticmethod
@@ -351,6 +353,7 @@ class LevenbergMarquardt(NonlinearLeastSquares):
             state.lam = max(state.lam / self.damping_factor, 1e-15)
             state.nu = self.damping_factor
             return _Step(x_new, f_new, float(np.linalg.norm(delta)), True, extra)
+        problem.discard_trial()  # not held through the next, more damped factorization
         return self._fail(_Step(x, lin.cost, math.nan, False, extra), state)
 
     def _fail(self, step: _Step, state: _Damping) -> _Step:

@@ -245,3 +245,31 @@ def test_a_rejected_trial_keeps_no_jacobians_for_the_next():
     assert (~accepted).sum() > 0
     assert calls[False] == int((~keep).sum())
     assert calls[True] == 1 + int(keep.sum()) + int((accepted & ~keep).sum())
+
+
+@pytest.mark.parametrize("make", [LevenbergMarquardt, Dogleg])
+def test_a_rejected_trial_does_not_stay_kept(make, monkeypatch):
+    """The Jacobians a rejected trial kept are dropped at once: they would otherwise stay
+    resident through the next damped factorization, the peak of a large solve."""
+    problem, _, x0 = pose_chain(SE2, n=20, closures=6)
+    far = x0.rplus(3.0 * np.random.default_rng(2).standard_normal((20, 3)))
+    counted, _ = _counting(problem)
+    trials = []
+    keep = LeastSquaresProblem.trial_cost
+
+    def recording(self, x):
+        trials.append(x)
+        return keep(self, x)
+
+    monkeypatch.setattr(LeastSquaresProblem, "trial_cost", recording)
+    rejected = []
+
+    def callback(info):
+        if info.iteration > 0 and np.isnan(info.step) and trials:
+            rejected.append(counted.kept_at(trials[-1]))
+
+    make(max_iterations=60).solve(counted, far, callback=callback)
+    assert rejected and not any(rejected)
+    counted.trial_cost(x0)
+    counted.discard_trial()
+    assert not counted.kept_at(x0)
