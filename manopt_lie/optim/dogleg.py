@@ -197,7 +197,6 @@ class Dogleg(NonlinearLeastSquares):
             region.radius = max(radius, 3.0 * length)
         if rho > 0:
             return _Step(x_new, f_new, length, True, extra)
-        problem.discard_trial()
         return self._fail(_Step(x, lin.cost, math.nan, False, extra), region, lin)
 
     def _fail(self, step: _Step, region: _Region, lin: Linearization | None = None) -> _Step:

@@ -123,6 +123,8 @@ class NonlinearLeastSquares(Optimizer):
                     f_prev, x, lin = lin.cost, step.x, new
                 else:
                     step = self._reject_nonfinite(step, state)
+            else:  # a rejected trial's kept Jacobians: not held through the next factorization
+                problem.discard_trial()
             if run.record(x, lin.cost, run.norm(x, lin.grad), step.step, **step.extra):
                 status = Status.CALLBACK
                 break
@@ -353,7 +355,6 @@ class LevenbergMarquardt(NonlinearLeastSquares):
             state.lam = max(state.lam / self.damping_factor, 1e-15)
             state.nu = self.damping_factor
             return _Step(x_new, f_new, float(np.linalg.norm(delta)), True, extra)
-        problem.discard_trial()  # not held through the next, more damped factorization
         return self._fail(_Step(x, lin.cost, math.nan, False, extra), state)
 
     def _fail(self, step: _Step, state: _Damping) -> _Step:
