@@ -209,6 +209,34 @@ def _lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tup
     return joined, np.concatenate(positions)
 
 
+def _lower_triangle_of_blocks(cvxopt: Any, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray) -> Any:
+    """The lower triangle of a block pattern's scalar expansion as a CVXOPT sparse matrix of
+    ones, through sparse products: ``E·S·Eᵀ + D``, where ``S`` holds one entry per strictly
+    lower block, ``E`` (``n × n_vars``) expands each variable into its coordinates and ``D``
+    holds the lower triangles of the diagonal blocks.
+
+    CVXOPT's triplet constructor scans a column's whole length for every entry it inserts
+    (``k²`` per column of ``k`` entries: ~50 ns per entry of a 3-D pose graph's triangle); its
+    products run through a sparse accumulator in linear time, and the constructor here only
+    sees ``S``, ``E`` and ``D``, of at most ``d`` entries per column: 2.5× faster than
+    :func:`_lower_triangle` on parking-garage (7.5 against 18.6 ms). The products hold the
+    whole triangle at once (about two copies), hence only below :data:`TRIM_ENTRIES` entries.
+    """
+    nv, n = dims.size, int(dims.sum())
+    block_cols = np.repeat(np.arange(nv, dtype=np.int64), np.diff(block_indptr))
+    strict = block_rows > block_cols
+    strict_rows = cvxopt.matrix(block_rows[strict].astype(np.int64))
+    S = cvxopt.spmatrix(1.0, strict_rows, cvxopt.matrix(block_cols[strict]), (nv, nv))
+    var = np.repeat(np.arange(nv, dtype=np.int64), dims)
+    E = cvxopt.spmatrix(1.0, cvxopt.matrix(np.arange(n, dtype=np.int64)), cvxopt.matrix(var), (n, nv))
+    # Column c of variable v holds rows c … o_v + d_v − 1 of its diagonal block.
+    length = np.cumsum(dims.astype(np.int64))[var] - np.arange(n)
+    cols = np.repeat(np.arange(n, dtype=np.int64), length)
+    rows = cols + np.arange(cols.size) - np.repeat(np.cumsum(length) - length, length)
+    D = cvxopt.spmatrix(1.0, cvxopt.matrix(rows), cvxopt.matrix(cols), (n, n))
+    return E * (S * E.T) + D
+
+
 class _CHOLMOD:
     """CHOLMOD's ``LLᵀ`` (supernodal) or ``LDLᵀ`` (simplicial) of the lower triangle, as its
     analysis chooses (through CVXOPT).
@@ -220,13 +248,18 @@ class _CHOLMOD:
 
     def __init__(
         self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
-        supernodal: bool | None = None,
+        supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
     ) -> None:
         import cvxopt
         from cvxopt import cholmod
 
         self._cvxopt, self._cholmod = cvxopt, cholmod
-        self._A, self._lower = _lower_triangle(cvxopt, indptr, indices)
+        if blocks is not None and (indices.size + indptr.size - 1) // 2 < TRIM_ENTRIES:
+            # ``blocks``: the pattern's own block form (dims, block indptr, block rows), trusted.
+            self._A = _lower_triangle_of_blocks(cvxopt, *blocks)
+            self._lower = np.flatnonzero(indices >= _columns(indptr)).astype(indices.dtype)
+        else:
+            self._A, self._lower = _lower_triangle(cvxopt, indptr, indices)
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:

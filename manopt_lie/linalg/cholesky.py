@@ -191,7 +191,9 @@ class CholeskySolver:
                     raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
             if trusted and self.backend == "cholmod":
                 assert self._structure is not None
-                impl = _CHOLMOD(H.indptr, H.indices, self._structure.fill_reducing_ordering(), self.supernodal)
+                structure = self._structure
+                impl = _CHOLMOD(H.indptr, H.indices, structure.fill_reducing_ordering(), self.supernodal,
+                                (structure.dims, *structure.block_pattern))  # fmt: skip
             elif self.backend == "cholmod":
                 impl = _CHOLMOD(H.indptr, H.indices, None, self.supernodal)
             else:

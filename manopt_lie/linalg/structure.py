@@ -248,6 +248,12 @@ class BlockStructure:
         """The CSC row ``indices`` of ``H`` (the same array object on every call)."""
         return self._indices
 
+    @property
+    def block_pattern(self) -> tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]:
+        """The variables' graph as the block CSC pattern of ``H`` (``indptr`` over the variables,
+        the row variable of every block, sorted, diagonal blocks included)."""
+        return self._block_pattern
+
     def fill_reducing_ordering(self) -> IntArray | None:
         """A fill-reducing permutation of ``H``'s coordinates: AMD on the variables' graph
         (CVXOPT's ``amd.order``), each variable's coordinates kept together, as GTSAM orders

@@ -185,6 +185,44 @@ def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+@pytest.mark.parametrize("graph", ["mixed", "poses"])
+@pytest.mark.parametrize("small", [True, False])
+def test_cholmod_lower_triangle_of_blocks_is_the_triangle_of_h(rng, monkeypatch, graph, small):
+    """A solver bound to a structure builds CHOLMOD's lower triangle from the block pattern
+    (sparse products) below ``TRIM_ENTRIES`` and from triplets above: both are the triangle
+    of ``H`` in CSC order, gathered from ``H.data``, and the factor solves."""
+    if graph == "mixed":  # variables of dimension 3 and 6, unary and binary factors, repeated pairs
+        dims, factors = random_factor_graph(rng, n_vars=30)
+        S = BlockStructure(dims, factors)
+        blocks, residuals, _ = random_values(rng, dims, factors)
+    else:
+        S, blocks, residuals = pose_graph(rng, n_poses=40, d=6)
+    H, g = S.normal_equations(blocks, residuals)
+    S.add_diagonal(H, 1.0, inplace=True)  # a variable no factor touches
+    if not small:
+        monkeypatch.setattr(_backends, "TRIM_ENTRIES", 1)
+    built = []
+
+    def spy(name):
+        build = getattr(_backends, name)
+        return lambda *args: built.append(name) or build(*args)
+
+    for name in ("_lower_triangle_of_blocks", "_lower_triangle"):
+        monkeypatch.setattr(_backends, name, spy(name))
+    ANALYSES.clear()
+    solver = CholeskySolver("cholmod").bind(S)
+    x = solver(H, g)
+    assert built == ["_lower_triangle_of_blocks" if small else "_lower_triangle"]
+    impl = solver._impl
+    lower = sp.tril(H).tocsc()
+    np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
+    np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), lower.indptr)
+    np.testing.assert_array_equal(H.data[impl._lower], lower.data)
+    np.testing.assert_allclose(x, np.linalg.solve(H.toarray(), g), rtol=1e-9, atol=1e-12)
+    ANALYSES.clear()
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
 def test_cholmod_refuses_a_pattern_that_is_not_canonical(monkeypatch):
     """Unsorted row indices in a column (which CVXOPT would reorder silently) are refused."""
     from manopt_lie.linalg import _backends
