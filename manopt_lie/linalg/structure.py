@@ -250,8 +250,9 @@ class BlockStructure:
 
     @property
     def block_pattern(self) -> tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]:
-        """The variables' graph as the block CSC pattern of ``H`` (``indptr`` over the variables,
-        the row variable of every block, sorted, diagonal blocks included)."""
+        """The variables' graph as the block CSC pattern of ``H``: ``indptr`` of shape
+        ``(n_vars + 1,)`` and the row variable of every stored block ``(v_s, v_t)``, sorted
+        within each column, every diagonal block included (both triangles, like ``H``)."""
         return self._block_pattern
 
     def fill_reducing_ordering(self) -> IntArray | None:
