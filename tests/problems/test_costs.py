@@ -132,6 +132,27 @@ def test_information_sqrt_whitens_and_names_indefinite_edges(rng):
     np.testing.assert_allclose(near[0], np.diag([1.0, 1e-9, 1.0]), atol=1e-15)
 
 
+def test_information_sqrt_of_exactly_symmetric_matrices_skips_nothing_it_must_check(rng):
+    """The shortcut for exactly symmetric matrices gives the factor of the round-off-asymmetric
+    path, still refuses and repairs indefinite ones, and never writes into the caller's array."""
+    info = random_information(rng, 6, 4)
+    info = 0.5 * (info + np.swapaxes(info, 1, 2))  # bit-exact symmetry: x + y == y + x
+    assert np.array_equal(info, np.swapaxes(info, 1, 2))
+    nudged = info.copy()
+    nudged[:, 0, 1] *= 1 + 1e-14  # asymmetric by round-off only: the symmetric part is used
+    np.testing.assert_allclose(costs.information_sqrt(info), costs.information_sqrt(nudged), rtol=1e-12, atol=1e-15)
+    nudged[4, 0, 1] += 1.0
+    with pytest.raises(costs.InformationMatrixError, match=r"1 edges .*not symmetric: 4;"):
+        costs.information_sqrt(nudged)
+    info[2] = np.diag([1.0, -1.0, 1.0, 1.0])
+    with pytest.raises(costs.IndefiniteInformationError, match=r"1 edges .*: 2;"):
+        costs.information_sqrt(info)
+    before = info.copy()
+    repaired = costs.information_sqrt(info, repair=True)
+    np.testing.assert_array_equal(info, before)
+    assert np.all(np.linalg.eigvalsh(np.swapaxes(repaired, 1, 2) @ repaired) > 0)
+
+
 @pytest.mark.parametrize(
     "bad",
     [np.zeros((3, 3)), np.diag([1.0, np.nan, 1.0]), np.diag([1.0, np.inf, 1.0]), np.full((3, 3), 1.0),
