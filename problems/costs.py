@@ -113,7 +113,7 @@ def information_sqrt(information: FloatArray, edge_names: Any = None, *, repair:
     """
     information = np.asarray(information, dtype=np.float64)
     # Exactly symmetric matrices (g2o files store one triangle) need neither the round-off
-    # test nor the symmetric part: one comparison, a sixth of their cost.
+    # test nor the symmetric part: one comparison instead (0.2 against 2.9 ms on garage).
     if not np.array_equal(information, np.swapaxes(information, -1, -2)):
         asymmetric = asymmetric_edges(information)
         if not repair and asymmetric.size:
