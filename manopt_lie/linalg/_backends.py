@@ -32,15 +32,15 @@ values (``factorize(data)``) and solves (``solve(b)``):
 from __future__ import annotations
 
 import threading
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from ._factors import exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
+from ._triangles import check_diagonal, columns, coordinate_major_triangle, lower_triangle
 from .errors import SingularSystemError
 
 __all__ = ["BACKENDS", "Backend", "available_backends", "surrogate_values"]
@@ -61,24 +61,6 @@ class Backend(Protocol):
     def solve(self, b: FloatArray) -> FloatArray: ...
 
 
-def _columns(indptr: IndexArray) -> NDArray[np.signedinteger]:
-    """Column of every stored entry of a CSC matrix (in the index dtype: half the memory of intp
-    for int32 patterns)."""
-    return np.repeat(np.arange(indptr.size - 1, dtype=indptr.dtype), np.diff(indptr))
-
-
-def _check_diagonal(
-    cols: NDArray[np.signedinteger], diag: NDArray[np.bool_], c0: int = 0, c1: int | None = None
-) -> None:
-    """Raise if some column of ``c0 … c1 − 1`` (all of ``cols`` by default) stores no diagonal
-    entry (``cols``: the column of each stored entry; ``diag``: entries on the diagonal)."""
-    if c1 is None:
-        c1 = int(cols[-1]) + 1 if cols.size else 0
-    if np.count_nonzero(diag) != c1 - c0:
-        missing = np.setdiff1d(np.arange(c0, c1), cols[diag])[0]
-        raise ValueError(f"H stores no diagonal entry in column {missing}: it cannot be positive definite")
-
-
 def surrogate_values(indptr: IndexArray, indices: IndexArray) -> FloatArray:
     """Values of a strictly diagonally dominant SPD matrix with the given pattern.
 
@@ -86,9 +68,9 @@ def surrogate_values(indptr: IndexArray, indices: IndexArray) -> FloatArray:
     entries of its column, so orderings and symbolic analyses that need a
     numeric matrix can run on the pattern alone.
     """
-    cols = _columns(indptr)
+    cols = columns(indptr)
     diag = indices == cols
-    _check_diagonal(cols, diag)
+    check_diagonal(cols, diag)
     values = np.full(indices.size, -1.0)
     values[diag] = np.diff(indptr)
     return values
@@ -140,7 +122,7 @@ class _QDLDL:
     def __init__(self, indptr: IndexArray, indices: IndexArray) -> None:
         import qdldl
 
-        cols = _columns(indptr)
+        cols = columns(indptr)
         upper = indices <= cols
         self._upper = np.flatnonzero(upper)
         n = indptr.size - 1
@@ -169,75 +151,12 @@ SUPERNODAL = 1
 supernodal ``LLᵀ`` or simplicial ``LDLᵀ`` (2 forces supernodes, 0 forbids them)."""
 
 
-CHUNK = 1 << 16
-"""Entries of ``H`` per piece of CVXOPT's lower triangle (:func:`_lower_triangle`)."""
-
-
-def _lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tuple[Any, NDArray[np.signedinteger]]:
-    """The lower triangle of the pattern as a CVXOPT sparse matrix of ones (the symbolic
-    analysis reads the pattern only), built column range by column range and joined, and
-    the positions of its entries among ``H``'s (in the index dtype: int32 for int32 patterns).
-
-    CVXOPT builds a sparse matrix from triplets only, through 64-bit row and column
-    indices and a sorting workspace, each as large as the matrix itself; built in pieces of
-    :data:`CHUNK` entries of ``H`` these transients stay a few MiB (a 10⁵-pose grid's
-    analysis peaks ~70 MB lower) and in cache (faster too), and ``cvxopt.sparse`` joins the
-    pieces' columns in one linear pass.
-
-    Raises
-    ------
-    ValueError
-        If a column stores no diagonal entry, or the pattern is not canonical CSC (unsorted
-        indices or duplicates in a column), which CVXOPT would silently reorder.
-    """
-    n = indptr.size - 1
-    bounds = np.unique(np.concatenate([np.searchsorted(indptr, np.arange(0, int(indptr[-1]), CHUNK)), [n]]))
-    pieces, positions = [], []
-    for c0, c1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-        start, stop = int(indptr[c0]), int(indptr[c1])
-        cols = np.repeat(np.arange(c0, c1, dtype=np.int64), np.diff(indptr[c0 : c1 + 1]))
-        rows = indices[start:stop]
-        _check_diagonal(cols, rows == cols, c0, c1)
-        lower = rows >= cols
-        rows, cols = rows[lower].astype(np.int64), cols[lower] - c0
-        piece = cvxopt.spmatrix(1.0, cvxopt.matrix(rows), cvxopt.matrix(cols), (n, c1 - c0))
-        same = np.array_equal(np.asarray(piece.I).ravel(), rows) and np.array_equal(np.asarray(piece.J).ravel(), cols)
-        if not same:
-            raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
-        pieces.append([piece])
-        positions.append((start + np.flatnonzero(lower)).astype(indices.dtype))
-    joined = pieces[0][0] if len(pieces) == 1 else cvxopt.sparse(pieces)
-    return joined, np.concatenate(positions)
-
-
-def _lower_triangle_of_blocks(cvxopt: Any, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray) -> Any:
-    """The lower triangle of a block pattern's scalar expansion as a CVXOPT sparse matrix of
-    ones, through sparse products: ``E·S·Eᵀ + D``, where ``S`` holds one entry per strictly
-    lower block, ``E`` (``n × n_vars``) expands each variable into its coordinates and ``D``
-    holds the lower triangles of the diagonal blocks.
-
-    CVXOPT's triplet constructor scans a column's whole length for every entry it inserts
-    (``k²`` per column of ``k`` entries: ~50 ns per entry of a 3-D pose graph's triangle); its
-    products run through a sparse accumulator in linear time, and the constructor here only
-    sees ``S``, ``E`` and ``D``, of at most ``d`` entries per column: twice as fast as
-    :func:`_lower_triangle` on parking-garage (9.1 against 19.0 ms). The products hold the
-    whole triangle at once (about two copies), hence only below :data:`TRIM_ENTRIES` entries.
-    """
-    def ints(a: NDArray[np.signedinteger]) -> Any:  # CVXOPT's index matrices are 64-bit
-        return cvxopt.matrix(np.asarray(a, dtype=np.int64))
-
-    nv, n = dims.size, int(dims.sum())
-    block_cols = _columns(block_indptr)
-    strict = block_rows > block_cols
-    S = cvxopt.spmatrix(1.0, ints(block_rows[strict]), ints(block_cols[strict]), (nv, nv))
-    var = _columns(exclusive_cumsum(dims))  # the variable of each coordinate
-    E = cvxopt.spmatrix(1.0, ints(np.arange(n)), ints(var), (n, nv))
-    # Column c of variable v holds rows c … o_v + d_v − 1 of its diagonal block.
-    diagonal_indptr = exclusive_cumsum(np.cumsum(dims)[var] - np.arange(n))
-    cols = _columns(diagonal_indptr)
-    rows = cols + np.arange(cols.size) - diagonal_indptr[cols]
-    D = cvxopt.spmatrix(1.0, ints(rows), ints(cols), (n, n))
-    return E * (S * E.T) + D
+GRID_ENTRIES = 1 << 13
+"""Lower-triangle entries from which a pattern given by its blocks is built as a grid of copies
+of the block pattern (:func:`~manopt_lie.linalg._triangles.coordinate_major_triangle`): below,
+triplets are faster (tinyGrid3D, 585 entries: 0.04 against 0.17 ms; CSAIL, 1.7·10⁴: equal).
+From :data:`TRIM_ENTRIES` on, triplets in pieces again: the grid raised LM's peak memory
+(cube-22 126 → 132 MB, grid2d-316 304 → 311 MB, ``benchmarks/bench_scaling.py``)."""
 
 
 class _CHOLMOD:
@@ -245,8 +164,10 @@ class _CHOLMOD:
     analysis chooses (through CVXOPT).
 
     One CVXOPT sparse matrix is built at analysis; each factorization only
-    overwrites its values (``A.V``), in CVXOPT's column-major order, which is
-    the order of the lower triangle of a canonical CSC matrix.
+    overwrites its values (``A.V``, gathered from ``H.data`` in CVXOPT's column-major order).
+    Given the pattern's blocks, the matrix is ``H`` in the coordinate-major order
+    (:func:`~manopt_lie.linalg._triangles.coordinate_major_triangle`), with the ordering and
+    the solves' vectors reordered to match; otherwise it is ``H``'s own lower triangle.
     """
 
     def __init__(
@@ -257,13 +178,18 @@ class _CHOLMOD:
         from cvxopt import cholmod
 
         self._cvxopt, self._cholmod = cvxopt, cholmod
+        # ``coords``: the coordinate of H at each row of CHOLMOD's matrix (None: H's own order).
+        self._coords: NDArray[np.intp] | None = None
         # A symmetric pattern with its whole diagonal has (nnz + n) / 2 lower entries.
-        if blocks is not None and (indices.size + indptr.size - 1) // 2 < TRIM_ENTRIES:
+        if blocks is not None and GRID_ENTRIES <= (indices.size + indptr.size - 1) // 2 < TRIM_ENTRIES:
             # ``blocks``: the pattern's own block form (dims, block indptr, block rows), trusted.
-            self._A = _lower_triangle_of_blocks(cvxopt, *blocks)
-            self._lower = np.flatnonzero(indices >= _columns(indptr)).astype(indices.dtype)
+            self._A, self._lower, self._coords = coordinate_major_triangle(cvxopt, indptr, *blocks)
+            if ordering is not None:  # the k-th pivot, in the reordered numbering
+                position = np.empty_like(self._coords)
+                position[self._coords] = np.arange(self._coords.size)
+                ordering = position[ordering]
         else:
-            self._A, self._lower = _lower_triangle(cvxopt, indptr, indices)
+            self._A, self._lower = lower_triangle(cvxopt, indptr, indices)
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:
@@ -303,9 +229,24 @@ class _CHOLMOD:
         self.pivots = None if (d == 1.0).all() else 1.0 / d
 
     def solve(self, b: FloatArray) -> FloatArray:
-        x = self._cvxopt.matrix(np.array(b, dtype=np.float64))
+        """``H⁻¹b`` for ``b`` of shape ``(n,)`` or ``(n, k)``."""
+        b = np.asarray(b, dtype=np.float64)
+        x = self._cvxopt.matrix(np.asfortranarray(b if self._coords is None else b[self._coords]))
         self._cholmod.solve(self._factor, x)
-        return np.asarray(x, dtype=np.float64).reshape(-1)
+        solution = np.asarray(x, dtype=np.float64).reshape(b.shape, order="F")
+        if self._coords is None:
+            return solution
+        out = np.empty_like(solution)
+        out[self._coords] = solution
+        return out
+
+    def permutation(self) -> NDArray[np.intp]:
+        """The factor's order in ``H``'s coordinates: ``P H Pᵀ = L D Lᵀ`` with
+        ``(P H Pᵀ)[i, j] = H[perm[i], perm[j]]``."""
+        p = self._cvxopt.matrix(np.arange(self._A.size[0], dtype=np.float64))
+        self._cholmod.solve(self._factor, p, sys=7)  # P b = b[perm]
+        perm = np.asarray(p, dtype=np.float64).reshape(-1).astype(np.intp)
+        return perm if self._coords is None else self._coords[perm]
 
 
 BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD]] = {

@@ -101,11 +101,9 @@ class CholeskyFactor:
 
 
 def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
-    cvxopt, cholmod = impl._cvxopt, impl._cholmod
+    cholmod = impl._cholmod
     n = H.shape[0]
-    p = cvxopt.matrix(np.arange(n, dtype=np.float64))
-    cholmod.solve(impl._factor, p, sys=7)  # P b = b[perm]
-    perm = np.asarray(p, dtype=np.float64).reshape(-1).astype(np.intp)
+    perm = impl.permutation()
 
     numeric = [True]  # whether impl._factor holds a numeric factorization
 
@@ -113,9 +111,7 @@ def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
         if not numeric[0]:
             impl.factorize(H.data)  # the analysis is kept
             numeric[0] = True
-        x = cvxopt.matrix(np.asfortranarray(b))
-        cholmod.solve(impl._factor, x)
-        return np.asarray(x, dtype=np.float64).reshape(b.shape, order="F")
+        return np.asarray(impl.solve(b), dtype=np.float64)
 
     def lower() -> sp.csc_matrix:
         # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize.

@@ -15,6 +15,7 @@ from manopt_lie.linalg import (
     SingularSystemError,
     _backends,
     _memory,
+    _triangles,
     block_jacobi,
     pcg_solve,
 )
@@ -23,6 +24,13 @@ from manopt_lie.linalg._analyses import ANALYSES
 from .helpers import pose_graph, random_factor_graph, random_values
 
 BACKENDS = CholeskySolver.available_backends()
+
+
+def cholesky_factor_of(impl) -> sp.csc_matrix:
+    """CHOLMOD's numeric factor ``L`` (as CVXOPT packs it) of a factorized backend."""
+    colptr, rowind, values = impl._cholmod.getfactor(impl._factor).CCS
+    n = len(colptr) - 1
+    return sp.csc_matrix((np.asarray(values).ravel(), np.asarray(rowind).ravel(), np.asarray(colptr).ravel()), (n, n))
 
 
 @pytest.fixture(params=BACKENDS)
@@ -169,11 +177,9 @@ def test_cholmod_factors_six_dimensional_variables_by_supernodes(rng):
 def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
     """CVXOPT's copy of the lower triangle, joined from pieces of ``chunk`` entries (one column
     may hold more than a piece), is the triangle of ``H`` in CSC order; the factor solves."""
-    from manopt_lie.linalg import _backends
-
     S, blocks, residuals = pose_graph(rng, n_poses=40, d=6)
     H, g = S.normal_equations(blocks, residuals)
-    monkeypatch.setattr(_backends, "CHUNK", chunk)
+    monkeypatch.setattr(_triangles, "CHUNK", chunk)
     impl = _backends._CHOLMOD(H.indptr, H.indices)
     lower = sp.tril(H).tocsc()
     np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
@@ -185,52 +191,84 @@ def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
-@pytest.mark.parametrize("graph", ["mixed", "poses"])
-@pytest.mark.parametrize("small", [True, False])
-def test_cholmod_lower_triangle_of_blocks_is_the_triangle_of_h(rng, monkeypatch, graph, small):
-    """A solver bound to a structure builds CHOLMOD's lower triangle from the block pattern
-    (sparse products) below ``TRIM_ENTRIES`` and from triplets above: both are the triangle
-    of ``H`` in CSC order, gathered from ``H.data``, and the factor solves."""
+@pytest.mark.parametrize("graph", ["mixed", "poses", "scalars"])
+def test_cholmod_of_a_structure_factors_h_in_coordinate_major_order(rng, monkeypatch, graph):
+    """A solver bound to a structure hands CHOLMOD ``H`` reordered coordinate-major (coordinate
+    0 of every variable, then 1, …), joined from copies of the block pattern: its lower
+    triangle is exactly that of ``H[coords][:, coords]``, gathered from ``H.data``; the factor is
+    that of ``H`` in the structure's fill-reducing order, and solves, single and many
+    right-hand sides, come back in ``H``'s coordinates."""
     if graph == "mixed":  # variables of dimension 3 and 6, unary and binary factors, repeated pairs
         dims, factors = random_factor_graph(rng, n_vars=30)
+    elif graph == "scalars":  # dimensions 1, 2 and 3: three classes of coordinates
+        dims = np.array([1, 2, 3] * 6)
+        of = [np.flatnonzero(dims == k) for k in (1, 2, 3)]
+        factors = [(np.stack([v, np.roll(v, 1)], axis=1), k) for k, v in zip((1, 2, 3), of, strict=True)]
+        factors += [(np.stack([of[0], of[2]], axis=1), 2), (of[0][:, None], 1)]
+    if graph == "poses":
+        S, blocks, residuals = pose_graph(rng, n_poses=40, d=6)
+    else:
         S = BlockStructure(dims, factors)
         blocks, residuals, _ = random_values(rng, dims, factors)
-    else:
-        S, blocks, residuals = pose_graph(rng, n_poses=40, d=6)
     H, g = S.normal_equations(blocks, residuals)
-    S.add_diagonal(H, 1.0, inplace=True)  # a variable no factor touches
-    if not small:
-        monkeypatch.setattr(_backends, "TRIM_ENTRIES", 1)
-    built = []
-
-    def spy(name):
-        build = getattr(_backends, name)
-        return lambda *args: built.append(name) or build(*args)
-
-    for name in ("_lower_triangle_of_blocks", "_lower_triangle"):
-        monkeypatch.setattr(_backends, name, spy(name))
+    S.add_diagonal(H, 1.0, inplace=True)  # every variable definite, even one no factor touches
+    monkeypatch.setattr(_backends, "GRID_ENTRIES", 1)
     ANALYSES.clear()
     solver = CholeskySolver("cholmod").bind(S)
     x = solver(H, g)
-    assert built == ["_lower_triangle_of_blocks" if small else "_lower_triangle"]
     impl = solver._impl
-    lower = sp.tril(H).tocsc()
+    coords = impl._coords
+    np.testing.assert_array_equal(np.sort(coords), np.arange(S.n))
+    var = np.repeat(np.arange(S.dims.size), S.dims)
+    local = np.arange(S.n) - S.offsets[var]
+    assert np.all(np.diff(local[coords]) >= 0)  # coordinate-major, variables in order within
+    lower = sp.tril(H[coords][:, coords]).tocsc()
+    lower.sort_indices()
     np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
     np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), lower.indptr)
     np.testing.assert_array_equal(H.data[impl._lower], lower.data)
+    dense = H.toarray()
+    np.testing.assert_allclose(x, np.linalg.solve(dense, g), rtol=1e-9, atol=1e-12)
+    many = rng.standard_normal((S.n, 3))
+    np.testing.assert_allclose(impl.solve(many), np.linalg.solve(dense, many), rtol=1e-9, atol=1e-12)
+    # The factor is that of H's own triangle in the same ordering: same order, same numbers.
+    plain = _backends._CHOLMOD(H.indptr, H.indices, S.fill_reducing_ordering(), solver.supernodal)
+    plain.factorize(H.data)
+    np.testing.assert_array_equal(impl.permutation(), plain.permutation())
+    factors = [sp.csc_matrix(cholesky_factor_of(b)) for b in (impl, plain)]
+    np.testing.assert_array_equal(factors[0].indices, factors[1].indices)
+    np.testing.assert_allclose(factors[0].data, factors[1].data, rtol=1e-12, atol=1e-14)
+    ANALYSES.clear()
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_cholmod_of_a_small_structure_keeps_the_order_of_h(rng):
+    """Below ``GRID_ENTRIES`` a bound solver builds ``H``'s own triangle from triplets (faster
+    there) and solves in it; from there on, the coordinate-major grid."""
+    S, blocks, residuals = pose_graph(rng, n_poses=8, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    assert (H.nnz + S.n) // 2 < _backends.GRID_ENTRIES
+    ANALYSES.clear()
+    solver = CholeskySolver("cholmod").bind(S)
+    x = solver(H, g)
+    assert solver._impl._coords is None
     np.testing.assert_allclose(x, np.linalg.solve(H.toarray(), g), rtol=1e-9, atol=1e-12)
+    big, blocks, residuals = pose_graph(rng, n_poses=150, d=6)
+    H, g = big.normal_equations(blocks, residuals)
+    assert (H.nnz + big.n) // 2 >= _backends.GRID_ENTRIES
+    solver = CholeskySolver("cholmod").bind(big)
+    solver(H, g)
+    assert solver._impl._coords is not None
     ANALYSES.clear()
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
 def test_cholmod_refuses_a_pattern_that_is_not_canonical(monkeypatch):
     """Unsorted row indices in a column (which CVXOPT would reorder silently) are refused."""
-    from manopt_lie.linalg import _backends
-
     H = sp.csc_matrix(np.array([[4.0, 1.0, 1.0], [1.0, 4.0, 1.0], [1.0, 1.0, 4.0]]))
     indices = H.indices.copy()
     indices[[1, 2]] = indices[[2, 1]]  # column 0: rows 0, 2, 1
-    monkeypatch.setattr(_backends, "CHUNK", 2)
+    monkeypatch.setattr(_triangles, "CHUNK", 2)
     with pytest.raises(ValueError, match="canonical"):
         _backends._CHOLMOD(H.indptr, indices)
 

@@ -1,0 +1,157 @@
+"""CHOLMOD's copy of ``H``'s lower triangle, built as a CVXOPT sparse matrix of ones (the
+symbolic analysis reads only the pattern), with the positions in ``H.data`` of its entries.
+
+CVXOPT makes sparse matrices from triplets, whose constructor scans a column's entries for
+every entry it inserts (``k²`` per column of ``k``; 20–80 ns per entry), from sparse
+products (~30 ns per entry of the product), or by joining blocks (``cvxopt.sparse``,
+~7 ns per entry, one linear pass). Two builds:
+
+- :func:`lower_triangle`: any canonical CSC pattern, from triplets, in column ranges of
+  :data:`CHUNK` entries joined (64-bit transients of a few MiB).
+- :func:`coordinate_major_triangle`: a pattern given by its blocks (a :class:`BlockStructure`),
+  reordered so that it *is* a grid of copies of the variables' graph, joined: first
+  coordinate 0 of every variable, then coordinate 1 of those with ``d_v > 1``, and so on.
+  In that order the entries of coordinates ``(a, b)`` form the block pattern ``S`` itself
+  (restricted to the variables that have those coordinates), so the lower triangle is
+  ``S`` below the diagonal blocks ``a > b`` and ``tril(S)`` on them, and CVXOPT only joins
+  copies of two or a few small matrices; CHOLMOD factors the reordered matrix with the
+  reordered fill-reducing ordering, which is the same matrix in the same elimination order.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._factors import exclusive_cumsum
+
+__all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "lower_triangle"]
+
+IndexArray = NDArray[np.signedinteger]
+
+CHUNK = 1 << 16
+"""Entries of ``H`` per piece of :func:`lower_triangle`."""
+
+
+def columns(indptr: IndexArray) -> NDArray[np.signedinteger]:
+    """Column of every stored entry of a CSC matrix (in the index dtype: half the memory of intp
+    for int32 patterns)."""
+    return np.repeat(np.arange(indptr.size - 1, dtype=indptr.dtype), np.diff(indptr))
+
+
+def check_diagonal(
+    cols: NDArray[np.signedinteger], diag: NDArray[np.bool_], c0: int = 0, c1: int | None = None
+) -> None:
+    """Raise if some column of ``c0 … c1 − 1`` (all of ``cols`` by default) stores no diagonal
+    entry (``cols``: the column of each stored entry; ``diag``: entries on the diagonal)."""
+    if c1 is None:
+        c1 = int(cols[-1]) + 1 if cols.size else 0
+    if np.count_nonzero(diag) != c1 - c0:
+        missing = np.setdiff1d(np.arange(c0, c1), cols[diag])[0]
+        raise ValueError(f"H stores no diagonal entry in column {missing}: it cannot be positive definite")
+
+
+def lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tuple[Any, NDArray[np.signedinteger]]:
+    """The lower triangle of the pattern (in ``H``'s order) and the positions of its entries
+    among ``H``'s (in the index dtype), built column range by column range and joined.
+
+    CVXOPT's triplets go through 64-bit row and column indices and a sorting workspace, each
+    as large as the matrix; in pieces of :data:`CHUNK` entries of ``H`` these transients stay a
+    few MiB and in cache, and ``cvxopt.sparse`` joins the pieces' columns in one pass.
+
+    Raises
+    ------
+    ValueError
+        If a column stores no diagonal entry, or the pattern is not canonical CSC (unsorted
+        indices or duplicates in a column), which CVXOPT would silently reorder.
+    """
+    n = indptr.size - 1
+    bounds = np.unique(np.concatenate([np.searchsorted(indptr, np.arange(0, int(indptr[-1]), CHUNK)), [n]]))
+    pieces, positions = [], []
+    for c0, c1 in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+        start, stop = int(indptr[c0]), int(indptr[c1])
+        cols = np.repeat(np.arange(c0, c1, dtype=np.int64), np.diff(indptr[c0 : c1 + 1]))
+        rows = indices[start:stop]
+        check_diagonal(cols, rows == cols, c0, c1)
+        lower = rows >= cols
+        rows, cols = rows[lower].astype(np.int64), cols[lower] - c0
+        piece = cvxopt.spmatrix(1.0, cvxopt.matrix(rows), cvxopt.matrix(cols), (n, c1 - c0))
+        same = np.array_equal(np.asarray(piece.I).ravel(), rows) and np.array_equal(np.asarray(piece.J).ravel(), cols)
+        if not same:
+            raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
+        pieces.append([piece])
+        positions.append((start + np.flatnonzero(lower)).astype(indices.dtype))
+    joined = pieces[0][0] if len(pieces) == 1 else cvxopt.sparse(pieces)
+    return joined, np.concatenate(positions)
+
+
+def coordinate_major_triangle(
+    cvxopt: Any, indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray
+) -> tuple[Any, NDArray[np.signedinteger], NDArray[np.intp]]:
+    """The lower triangle of ``P H Pᵀ`` in the coordinate-major order ``P``, the position in
+    ``H.data`` of each of its entries (CVXOPT's column-major order, ``H``'s index dtype), and
+    ``coords``: the coordinate of ``H`` at each row of ``P H Pᵀ``.
+
+    ``H`` (CSC ``indptr``) is the scalar expansion of the block pattern (``dims``,
+    ``block_indptr``, ``block_rows``: both triangles, every diagonal block, rows sorted), as
+    :class:`~manopt_lie.linalg.BlockStructure` builds it; its column ``o_v + b`` starts at
+    ``indptr[o_v] + b·ℓ_v`` (every column of ``v`` stores the same ``ℓ_v`` rows), where block
+    ``k = (w, v)`` begins ``ρ_k`` rows down, so entry ``(o_w + a, o_v + b)`` sits at
+    ``indptr[o_v] + b·ℓ_v + ρ_k + a``. Trusted: the pattern is not checked.
+    """
+    nv, d_max = dims.size, int(dims.max())
+    offsets = exclusive_cumsum(dims)
+    block_cols = columns(block_indptr).astype(np.intp)
+    rows = block_rows.astype(np.intp)
+    first = indptr[offsets[:-1]].astype(np.intp)
+    length = (indptr[offsets[1:]].astype(np.intp) - first) // dims  # ℓ_v
+    rho = exclusive_cumsum(dims[rows])
+    rho = rho[:-1] - rho[block_indptr[block_cols]]
+    start = first[block_cols] + rho  # position of entry (o_w, o_v) of block k
+    step = length[block_cols]  # from column o_v + b to o_v + b + 1
+
+    # Coordinate a exists for the variables with d_v > a; their rank among those numbers them.
+    has = dims[None, :] > np.arange(d_max)[:, None]
+    count = has.sum(axis=1)
+    base = exclusive_cumsum(count)
+    rank = np.cumsum(has, axis=1) - 1
+    coords = np.concatenate([offsets[:-1][has[a]] + a for a in range(d_max)])
+
+    lower_blocks = rows >= block_cols
+    grid = []
+    gather = np.empty((int(indptr[-1]) + int(offsets[-1])) // 2, dtype=indptr.dtype)  # (nnz + n) / 2
+    done = 0
+    Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)
+    shared: dict[tuple[int, int, bool], tuple[Any, Blocks, NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]] = {}
+    for b in range(d_max):
+        column = [cvxopt.spmatrix([], [], [], (int(base[b]), int(count[b])))] if b else []
+        segments = []
+        for a in range(b, d_max):
+            # Coordinates a and b are shared by the same variables as a' and b' when the counts
+            # agree (has[a] ⊇ has[a + 1]): one matrix, one set of block indices.
+            key = (int(count[a]), int(count[b]), a == b)
+            if key not in shared:
+                keep = has[a][rows] & has[b][block_cols] & (lower_blocks if a == b else True)
+                blocks: Blocks = slice(None) if keep.all() else np.flatnonzero(keep)
+                cols = block_cols[blocks]
+                per_column = np.bincount(cols, minlength=nv)
+                within = np.arange(cols.size) - exclusive_cumsum(per_column)[cols]
+                matrix = cvxopt.spmatrix(1.0, cvxopt.matrix(rank[a][rows[blocks]].astype(np.int64)),
+                                         cvxopt.matrix(rank[b][cols].astype(np.int64)),
+                                         (int(count[a]), int(count[b])))  # fmt: skip
+                shared[key] = (matrix, blocks, cols, per_column, within)
+            column.append(shared[key][0])
+            segments.append((a, *shared[key][1:]))
+        grid.append(column)
+        # Column o_v + b of P H Pᵀ lists coordinate b's blocks, then coordinate b + 1's, …
+        total = np.sum([per_column for *_, per_column, _ in segments], axis=0)
+        head = exclusive_cumsum(total)[:-1]
+        out = gather[done : done + int(total.sum())]
+        done += out.size
+        at_b = start + b * step
+        for a, blocks, cols, per_column, within in segments:
+            out[head[cols] + within] = at_b[blocks] + a
+            head += per_column
+    return cvxopt.sparse(grid), gather, coords
