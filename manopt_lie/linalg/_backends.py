@@ -102,7 +102,7 @@ class _SuperLU:
         self._lu: spla.SuperLU | None = None
 
     def factorize(self, data: FloatArray) -> None:
-        Hp = sp.csc_matrix((data[self._gather], self._indices, self._indptr), shape=(self._n, self._n))
+        Hp = sp.csc_matrix((np.take(data, self._gather), self._indices, self._indptr), shape=(self._n, self._n))
         try:
             self._lu = spla.splu(Hp, permc_spec="NATURAL", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError as err:
@@ -133,7 +133,7 @@ class _QDLDL:
         self._solver = qdldl.Solver(self._triu(surrogate_values(indptr, indices)), upper=True)
 
     def _triu(self, data: FloatArray) -> sp.csc_matrix:
-        return sp.csc_matrix((data[self._upper], self._indices, self._indptr), shape=(self._n, self._n))
+        return sp.csc_matrix((np.take(data, self._upper), self._indices, self._indptr), shape=(self._n, self._n))
 
     def factorize(self, data: FloatArray) -> None:
         # ``update`` reports no zero pivot: the caller's residual checks catch it.
@@ -213,7 +213,7 @@ class _CHOLMOD:
             release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
 
     def factorize(self, data: FloatArray) -> None:
-        self._A.V = self._cvxopt.matrix(np.ascontiguousarray(data[self._lower], dtype=np.float64))
+        self._A.V = self._cvxopt.matrix(np.take(np.asarray(data, dtype=np.float64), self._lower))
         try:
             self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:
