@@ -40,7 +40,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from ._memory import TRIM_ENTRIES, release_freed_memory
-from ._triangles import check_diagonal, columns, coordinate_major_triangle, lower_triangle
+from ._triangles import check_diagonal, columns, coordinate_major_triangle, triangle
 from .errors import SingularSystemError
 
 __all__ = ["BACKENDS", "Backend", "available_backends", "surrogate_values"]
@@ -160,14 +160,20 @@ From :data:`TRIM_ENTRIES` on, triplets in pieces again: the grid raised LM's pea
 
 
 class _CHOLMOD:
-    """CHOLMOD's ``LLᵀ`` (supernodal) or ``LDLᵀ`` (simplicial) of the lower triangle, as its
+    """CHOLMOD's ``LLᵀ`` (supernodal) or ``LDLᵀ`` (simplicial) of one triangle, as its
     analysis chooses (through CVXOPT).
 
     One CVXOPT sparse matrix is built at analysis; each factorization only
     overwrites its values (``A.V``, gathered from ``H.data`` in CVXOPT's column-major order).
     Given the pattern's blocks, the matrix is ``H`` in the coordinate-major order
     (:func:`~manopt_lie.linalg._triangles.coordinate_major_triangle`), with the ordering and
-    the solves' vectors reordered to match; otherwise it is ``H``'s own lower triangle.
+    the solves' vectors reordered to match; otherwise it is ``H``'s own order.
+
+    The triangle is the one CHOLMOD's factorization permutes with the fewest transposes
+    (``cholmod_factorize``): its simplicial ``LDLᵀ`` takes the lower one (``P A Pᵀ``'s upper
+    triangle in one transpose), its supernodal ``LLᵀ`` the upper one (``tril(P A Pᵀ)`` in
+    one transpose, where the lower one costs two). So a forced supernodal analysis hands
+    CHOLMOD the upper triangle (built as directly as the lower one), the same factor.
     """
 
     def __init__(
@@ -180,16 +186,19 @@ class _CHOLMOD:
         self._cvxopt, self._cholmod = cvxopt, cholmod
         # ``coords``: the coordinate of H at each row of CHOLMOD's matrix (None: H's own order).
         self._coords: NDArray[np.intp] | None = None
+        self.uplo = "U" if supernodal else "L"
+        """The triangle of ``H`` that CHOLMOD reads: ``"L"`` or ``"U"`` (forced supernodes)."""
+        upper = self.uplo == "U"
         # A symmetric pattern with its whole diagonal has (nnz + n) / 2 lower entries.
         if blocks is not None and GRID_ENTRIES <= (indices.size + indptr.size - 1) // 2 < TRIM_ENTRIES:
             # ``blocks``: the pattern's own block form (dims, block indptr, block rows), trusted.
-            self._A, self._lower, self._coords = coordinate_major_triangle(cvxopt, indptr, *blocks)
+            self._A, self._gather, self._coords = coordinate_major_triangle(cvxopt, indptr, *blocks, upper=upper)
             if ordering is not None:  # the k-th pivot, in the reordered numbering
                 position = np.empty_like(self._coords)
                 position[self._coords] = np.arange(self._coords.size)
                 ordering = position[ordering]
         else:
-            self._A, self._lower = lower_triangle(cvxopt, indptr, indices)
+            self._A, self._gather = triangle(cvxopt, indptr, indices, upper=upper)
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:
@@ -198,22 +207,22 @@ class _CHOLMOD:
             cholmod.options["supernodal"] = SUPERNODAL if supernodal is None else 2 if supernodal else 0
             try:
                 if ordering is None:
-                    self._factor = cholmod.symbolic(self._A, uplo="L")
+                    self._factor = cholmod.symbolic(self._A, uplo=self.uplo)
                 else:
                     # Only the given ordering: CHOLMOD would also run its AMD on the coordinates and
                     # keep the lesser fill, which on pose graphs is within 0.5 % of the variables'
                     # AMD, for 2-3.5× the analysis time and ~40 % more of its memory.
                     cholmod.options["nmethods"] = 1
                     p = cvxopt.matrix(np.asarray(ordering, dtype=np.int64))
-                    self._factor = cholmod.symbolic(self._A, p=p, uplo="L")
+                    self._factor = cholmod.symbolic(self._A, p=p, uplo=self.uplo)
             finally:
                 cholmod.options.clear()
                 cholmod.options.update(saved)
-        if self._lower.size >= TRIM_ENTRIES:
+        if self._gather.size >= TRIM_ENTRIES:
             release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
 
     def factorize(self, data: FloatArray) -> None:
-        self._A.V = self._cvxopt.matrix(np.take(np.asarray(data, dtype=np.float64), self._lower))
+        self._A.V = self._cvxopt.matrix(np.take(np.asarray(data, dtype=np.float64), self._gather))
         try:
             self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:

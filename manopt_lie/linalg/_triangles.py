@@ -1,19 +1,21 @@
-"""CHOLMOD's copy of ``H``'s lower triangle, built as a CVXOPT sparse matrix of ones (the
-symbolic analysis reads only the pattern), with the positions in ``H.data`` of its entries.
+"""CHOLMOD's copy of one triangle of ``H`` (the lower, or with ``upper=True`` the upper one),
+built as a CVXOPT sparse matrix of ones (the symbolic analysis reads only the pattern), with
+the positions in ``H.data`` of its entries.
 
 CVXOPT makes sparse matrices from triplets, whose constructor scans a column's entries for
 every entry it inserts (``k²`` per column of ``k``; 20–80 ns per entry), from sparse
 products (~30 ns per entry of the product), or by joining blocks (``cvxopt.sparse``,
 ~7 ns per entry, one linear pass). Two builds:
 
-- :func:`lower_triangle`: any canonical CSC pattern, from triplets, in column ranges of
+- :func:`triangle`: any canonical CSC pattern, from triplets, in column ranges of
   :data:`CHUNK` entries joined (64-bit transients of a few MiB).
 - :func:`coordinate_major_triangle`: a pattern given by its blocks (a :class:`BlockStructure`),
   reordered so that it *is* a grid of copies of the variables' graph, joined: first
   coordinate 0 of every variable, then coordinate 1 of those with ``d_v > 1``, and so on.
   In that order the entries of coordinates ``(a, b)`` form the block pattern ``S`` itself
   (restricted to the variables that have those coordinates), so the lower triangle is
-  ``S`` below the diagonal blocks ``a > b`` and ``tril(S)`` on them, and CVXOPT only joins
+  ``S`` below the diagonal blocks ``a > b`` and ``tril(S)`` on them (the upper one: ``S``
+  above them, ``triu(S)`` on them), and CVXOPT only joins
   copies of two or a few small matrices; CHOLMOD factors the reordered matrix with the
   reordered fill-reducing ordering, which is the same matrix in the same elimination order.
 """
@@ -27,12 +29,12 @@ from numpy.typing import NDArray
 
 from ._factors import exclusive_cumsum
 
-__all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "lower_triangle"]
+__all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "triangle"]
 
 IndexArray = NDArray[np.signedinteger]
 
 CHUNK = 1 << 16
-"""Entries of ``H`` per piece of :func:`lower_triangle`."""
+"""Entries of ``H`` per piece of :func:`triangle`."""
 
 
 def columns(indptr: IndexArray) -> NDArray[np.signedinteger]:
@@ -53,9 +55,12 @@ def check_diagonal(
         raise ValueError(f"H stores no diagonal entry in column {missing}: it cannot be positive definite")
 
 
-def lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tuple[Any, NDArray[np.signedinteger]]:
-    """The lower triangle of the pattern (in ``H``'s order) and the positions of its entries
-    among ``H``'s (in the index dtype), built column range by column range and joined.
+def triangle(
+    cvxopt: Any, indptr: IndexArray, indices: IndexArray, upper: bool = False
+) -> tuple[Any, NDArray[np.signedinteger]]:
+    """The lower (``upper``: the upper) triangle of the pattern (in ``H``'s order) and the
+    positions of its entries among ``H``'s (in the index dtype), built column range by column
+    range and joined.
 
     CVXOPT's triplets go through 64-bit row and column indices and a sorting workspace, each
     as large as the matrix; in pieces of :data:`CHUNK` entries of ``H`` these transients stay a
@@ -75,22 +80,23 @@ def lower_triangle(cvxopt: Any, indptr: IndexArray, indices: IndexArray) -> tupl
         cols = np.repeat(np.arange(c0, c1, dtype=np.int64), np.diff(indptr[c0 : c1 + 1]))
         rows = indices[start:stop]
         check_diagonal(cols, rows == cols, c0, c1)
-        lower = rows >= cols
-        rows, cols = rows[lower].astype(np.int64), cols[lower] - c0
+        keep = rows <= cols if upper else rows >= cols
+        rows, cols = rows[keep].astype(np.int64), cols[keep] - c0
         piece = cvxopt.spmatrix(1.0, cvxopt.matrix(rows), cvxopt.matrix(cols), (n, c1 - c0))
         same = np.array_equal(np.asarray(piece.I).ravel(), rows) and np.array_equal(np.asarray(piece.J).ravel(), cols)
         if not same:
             raise ValueError("CHOLMOD backend: H must be canonical CSC (sorted indices, no duplicates)")
         pieces.append([piece])
-        positions.append((start + np.flatnonzero(lower)).astype(indices.dtype))
+        positions.append((start + np.flatnonzero(keep)).astype(indices.dtype))
     joined = pieces[0][0] if len(pieces) == 1 else cvxopt.sparse(pieces)
     return joined, np.concatenate(positions)
 
 
 def coordinate_major_triangle(
-    cvxopt: Any, indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray
+    cvxopt: Any, indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray,
+    upper: bool = False,
 ) -> tuple[Any, NDArray[np.signedinteger], NDArray[np.intp]]:
-    """The lower triangle of ``P H Pᵀ`` in the coordinate-major order ``P``, the position in
+    """The lower (``upper``: the upper) triangle of ``P H Pᵀ`` in the coordinate-major order ``P``, the position in
     ``H.data`` of each of its entries (CVXOPT's column-major order, ``H``'s index dtype), and
     ``coords``: the coordinate of ``H`` at each row of ``P H Pᵀ``.
 
@@ -119,21 +125,24 @@ def coordinate_major_triangle(
     rank = np.cumsum(has, axis=1) - 1
     coords = np.concatenate([offsets[:-1][has[a]] + a for a in range(d_max)])
 
-    lower_blocks = rows >= block_cols
+    # On the diagonal coordinate pairs a == b, the blocks of the triangle.
+    triangle_blocks = rows <= block_cols if upper else rows >= block_cols
     grid = []
     gather = np.empty((int(indptr[-1]) + int(offsets[-1])) // 2, dtype=indptr.dtype)  # (nnz + n) / 2
     done = 0
     Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)
     shared: dict[tuple[int, int, bool], tuple[Any, Blocks, NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]] = {}
     for b in range(d_max):
-        column = [cvxopt.spmatrix([], [], [], (int(base[b]), int(count[b])))] if b else []
+        # Column coordinate b holds row coordinates a ≥ b (lower) or a ≤ b (upper); zeros elsewhere.
+        above, below = (0, int(base[-1] - base[b + 1])) if upper else (int(base[b]), 0)
+        column = [cvxopt.spmatrix([], [], [], (above, int(count[b])))] if above else []
         segments = []
-        for a in range(b, d_max):
+        for a in range(b + 1) if upper else range(b, d_max):
             # Coordinates a and b are shared by the same variables as a' and b' when the counts
             # agree (has[a] ⊇ has[a + 1]): one matrix, one set of block indices.
             key = (int(count[a]), int(count[b]), a == b)
             if key not in shared:
-                keep = has[a][rows] & has[b][block_cols] & (lower_blocks if a == b else True)
+                keep = has[a][rows] & has[b][block_cols] & (triangle_blocks if a == b else True)
                 blocks: Blocks = slice(None) if keep.all() else np.flatnonzero(keep)
                 cols = block_cols[blocks]
                 per_column = np.bincount(cols, minlength=nv)
@@ -144,6 +153,8 @@ def coordinate_major_triangle(
                 shared[key] = (matrix, blocks, cols, per_column, within)
             column.append(shared[key][0])
             segments.append((a, *shared[key][1:]))
+        if below:
+            column.append(cvxopt.spmatrix([], [], [], (below, int(count[b]))))
         grid.append(column)
         # Column o_v + b of P H Pᵀ lists coordinate b's blocks, then coordinate b + 1's, …
         total = np.sum([per_column for *_, per_column, _ in segments], axis=0)

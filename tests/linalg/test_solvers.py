@@ -184,7 +184,7 @@ def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
     lower = sp.tril(H).tocsc()
     np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
     np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), lower.indptr)
-    np.testing.assert_array_equal(H.data[impl._lower], lower.data)
+    np.testing.assert_array_equal(H.data[impl._gather], lower.data)
     impl.factorize(H.data)
     x = impl.solve(g)
     assert np.linalg.norm(H @ x - g) <= 1e-9 * np.linalg.norm(g)
@@ -222,11 +222,13 @@ def test_cholmod_of_a_structure_factors_h_in_coordinate_major_order(rng, monkeyp
     var = np.repeat(np.arange(S.dims.size), S.dims)
     local = np.arange(S.n) - S.offsets[var]
     assert np.all(np.diff(local[coords]) >= 0)  # coordinate-major, variables in order within
-    lower = sp.tril(H[coords][:, coords]).tocsc()
-    lower.sort_indices()
-    np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), lower.indices)
-    np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), lower.indptr)
-    np.testing.assert_array_equal(H.data[impl._lower], lower.data)
+    # 3-D poses force supernodes, which CHOLMOD factors from the upper triangle.
+    assert impl.uplo == ("U" if graph == "poses" else "L")
+    triangle = (sp.triu if impl.uplo == "U" else sp.tril)(H[coords][:, coords]).tocsc()
+    triangle.sort_indices()
+    np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), triangle.indices)
+    np.testing.assert_array_equal(np.asarray(impl._A.CCS[0]).ravel(), triangle.indptr)
+    np.testing.assert_array_equal(H.data[impl._gather], triangle.data)
     dense = H.toarray()
     np.testing.assert_allclose(x, np.linalg.solve(dense, g), rtol=1e-9, atol=1e-12)
     many = rng.standard_normal((S.n, 3))
@@ -239,6 +241,41 @@ def test_cholmod_of_a_structure_factors_h_in_coordinate_major_order(rng, monkeyp
     np.testing.assert_array_equal(factors[0].indices, factors[1].indices)
     np.testing.assert_allclose(factors[0].data, factors[1].data, rtol=1e-12, atol=1e-14)
     ANALYSES.clear()
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+@pytest.mark.parametrize("supernodal", [True, False, None])
+@pytest.mark.parametrize("grid", [False, True], ids=["own-order", "coordinate-major"])
+def test_cholmod_reads_the_triangle_its_kind_permutes_fastest(rng, monkeypatch, supernodal, grid):
+    """Supernodes read the upper triangle, the simplicial ``LDLᵀ`` and CHOLMOD's own choice the
+    lower, in ``H``'s order or coordinate-major (variables of dimension 3 and 6); either way
+    the factor is the Cholesky factor of ``P H Pᵀ`` in the given ordering."""
+    dims, factors = random_factor_graph(rng, n_vars=30)
+    S = BlockStructure(dims, factors)
+    blocks, residuals, _ = random_values(rng, dims, factors)
+    H, g = S.normal_equations(blocks, residuals)
+    S.add_diagonal(H, 1.0, inplace=True)
+    order = S.fill_reducing_ordering()
+    monkeypatch.setattr(_backends, "GRID_ENTRIES", 1 if grid else _backends.TRIM_ENTRIES)
+    impl = _backends._CHOLMOD(H.indptr, H.indices, order, supernodal, (S.dims, *S.block_pattern))
+    assert impl.uplo == ("U" if supernodal else "L")
+    coords = impl._coords if grid else np.arange(S.n)
+    assert (impl._coords is not None) == grid
+    triangle = (sp.triu if supernodal else sp.tril)(H[coords][:, coords]).tocsc()
+    triangle.sort_indices()
+    np.testing.assert_array_equal(np.asarray(impl._A.I).ravel(), triangle.indices)
+    np.testing.assert_array_equal(H.data[impl._gather], triangle.data)
+    impl.factorize(H.data)
+    x = impl.solve(g)
+    assert np.linalg.norm(H @ x - g) <= 1e-9 * np.linalg.norm(g)
+    perm = impl.permutation()
+    L = cholesky_factor_of(impl).toarray()  # leaves the factor symbolic: last
+    if impl.pivots is not None:  # LDLᵀ, packed: D on the diagonal, unit L below
+        d = np.diag(L).copy()
+        np.fill_diagonal(L, 1.0)
+        L = L * np.sqrt(d)
+    dense = H.toarray()[np.ix_(perm, perm)]
+    np.testing.assert_allclose(L, np.linalg.cholesky(dense), rtol=1e-9, atol=1e-9 * np.abs(L).max())
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
