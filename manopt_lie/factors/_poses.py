@@ -93,8 +93,9 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
             j_j[...] = jr_inv
         else:
             np.matmul(L[a:b] if per_edge else L, jr_inv, out=j_j)
-        np.matmul(j_j, kernels.adjoint(_inverse(y, d)), out=j_i)
-        np.negative(j_i, out=j_i)
+        minus_adjoint = kernels.adjoint(_inverse(y, d))
+        np.negative(minus_adjoint, out=minus_adjoint)  # contiguous: ~10× faster than negating the view j_i
+        np.matmul(j_j, minus_adjoint, out=j_i)
 
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
         mi, mj = xi.as_matrix(), xj.as_matrix()
