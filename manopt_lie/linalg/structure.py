@@ -370,23 +370,55 @@ class BlockStructure:
         threads may assemble from one structure at once. ``H`` and ``g`` are
         always new arrays.
         """
-        blocks_ = self._check_blocks(blocks)
+        blocks_, weights_ = self._check_blocks(blocks), self._check_weights(weights)
+        return self._hessian(blocks_, weights_), self._gradient(blocks_, self._check_residuals(residuals), weights_)
+
+    def hessian(self, blocks: Sequence[ArrayLike], weights: Sequence[ArrayLike | None] | None = None) -> sp.csc_matrix:
+        """``H = JᵀWJ`` alone (see :meth:`normal_equations`): a fresh matrix of the fixed pattern."""
+        return self._hessian(self._check_blocks(blocks), self._check_weights(weights))
+
+    def gradient(
+        self,
+        blocks: Sequence[ArrayLike],
+        residuals: Sequence[ArrayLike],
+        weights: Sequence[ArrayLike | None] | None = None,
+    ) -> FloatArray:
+        """``g = JᵀWr`` alone (see :meth:`normal_equations`), shape ``(n,)``: a fraction of the
+        cost of ``H`` (one ``(1, r)·(r, D)`` product per edge instead of ``(D, r)·(r, D)``)."""
+        blocks_, weights_ = self._check_blocks(blocks), self._check_weights(weights)
+        return self._gradient(blocks_, self._check_residuals(residuals), weights_)
+
+    def _check_residuals(self, residuals: Sequence[ArrayLike]) -> list[FloatArray]:
         if len(residuals) != len(self._factors):
             raise ValueError(f"expected {len(self._factors)} residual arrays (one per factor), got {len(residuals)}")
-        if weights is not None and len(weights) != len(self._factors):
-            raise ValueError(f"expected {len(self._factors)} weight arrays (one per factor), got {len(weights)}")
-        hess_vals, grad_vals, weighted = self._workspaces()
-        data, g = np.zeros(self.nnz), np.zeros(self._n)
-        for k, (a, f) in enumerate(zip(blocks_, self._factors, strict=True)):
+        out = []
+        for k, f in enumerate(self._factors):
             r = np.asarray(residuals[k], dtype=np.float64)
             if r.shape != (f.m, f.residual_dim):
                 raise ShapeError(f"residuals[{k}]: expected shape {(f.m, f.residual_dim)}, got {r.shape}")
-            w = None
-            if weights is not None and weights[k] is not None:
-                w = np.asarray(weights[k], dtype=np.float64)
-                if w.shape != (f.m,):
-                    raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")
-            hs, gs, width, step = self._hess_scatter[k], self._grad_scatter[k], f.width, self._chunks[k]
+            out.append(r)
+        return out
+
+    def _check_weights(self, weights: Sequence[ArrayLike | None] | None) -> list[FloatArray | None]:
+        """Per factor, its weights ``(m,)`` or ``None`` (weights 1)."""
+        if weights is None:
+            return [None] * len(self._factors)
+        if len(weights) != len(self._factors):
+            raise ValueError(f"expected {len(self._factors)} weight arrays (one per factor), got {len(weights)}")
+        out: list[FloatArray | None] = []
+        for k, f in enumerate(self._factors):
+            w = None if weights[k] is None else np.asarray(weights[k], dtype=np.float64)
+            if w is not None and w.shape != (f.m,):
+                raise ShapeError(f"weights[{k}]: expected shape {(f.m,)}, got {w.shape}")
+            out.append(w)
+        return out
+
+    def _hessian(self, blocks: list[FloatArray], weights: list[FloatArray | None]) -> sp.csc_matrix:
+        """``Σ_e w_e A_eᵀA_e`` scattered into a fresh ``H``."""
+        hess_vals, _, weighted = self._workspaces()
+        data = np.zeros(self.nnz)
+        for k, (a, w, f) in enumerate(zip(blocks, weights, self._factors, strict=True)):
+            hs, width, step = self._hess_scatter[k], f.width, self._chunks[k]
             # Chunks of edges: the products of one chunk stay in cache and in a small workspace,
             # and np.add.at sums them into H (int32 scatters on its fast path). W A_e goes to a
             # workspace even for unit weights: NumPy's matmul of two views of one array takes
@@ -401,9 +433,22 @@ class BlockStructure:
                     np.multiply(ac, w[e0:e1, None, None], out=aw)
                 prod = np.matmul(aw.transpose(0, 2, 1), ac, out=hess_vals[: c * width * width].reshape(c, width, width))
                 np.add.at(data, hs[e0 * width * width : e1 * width * width], prod.reshape(-1))
-                gv = np.matmul(r[e0:e1, None, :], aw, out=grad_vals[: c * width].reshape(c, 1, width))
+        return self._csc(data)
+
+    def _gradient(
+        self, blocks: list[FloatArray], residuals: list[FloatArray], weights: list[FloatArray | None]
+    ) -> FloatArray:
+        """``Σ_e w_e A_eᵀ r_e`` scattered into a fresh ``g``."""
+        _, grad_vals, _ = self._workspaces()
+        g = np.zeros(self._n)
+        for k, (a, r, w, f) in enumerate(zip(blocks, residuals, weights, self._factors, strict=True)):
+            gs, width, step = self._grad_scatter[k], f.width, self._chunks[k]
+            rw = r if w is None else r * w[:, None]
+            for e0 in range(0, f.m, step):
+                e1 = min(e0 + step, f.m)
+                gv = np.matmul(rw[e0:e1, None, :], a[e0:e1], out=grad_vals[: (e1 - e0) * width].reshape(-1, 1, width))
                 np.add.at(g, gs[e0 * width : e1 * width], gv.reshape(-1))
-        return self._csc(data), g
+        return g
 
     def _check_pattern(self, H: sp.csc_matrix, what: str) -> None:
         if H.shape != (self._n, self._n) or H.nnz != self.nnz or H.format != "csc":

@@ -101,19 +101,58 @@ class Factor:
         return cast(RobustLoss, self.loss)
 
 
-@dataclass(frozen=True)
 class Linearization:
-    """Everything Gauss-Newton needs at one point: cost, gradient, ``H = JᵀWJ``."""
+    """Everything Gauss-Newton needs at one point: cost, gradient, ``H = JᵀWJ``.
 
-    cost: float
-    grad: FloatArray  # (n, d)
-    hessian: scipy.sparse.csc_matrix
-    residuals: list[FloatArray]
-    weights: list[FloatArray]
+    Parameters
+    ----------
+    cost : float
+    grad : ndarray, the tangent shape
+    hessian : scipy.sparse.csc_matrix, or a callable returning it
+        A callable is called at the first use of :attr:`hessian` (and then forgotten):
+        a run that stops at a point, or a solver that needs only gradients, never
+        assembles ``H``.
+    residuals, weights : list of ndarray
+        Per factor, the whitened residuals ``(m, k)`` and IRLS weights ``(m,)``.
+    jacobians : list of ndarray, optional
+        The Jacobian blocks ``H`` is assembled from: :meth:`is_finite` checks them while
+        ``H`` is not assembled.
+    """
+
+    __slots__ = ("_hessian", "_jacobians", "cost", "grad", "residuals", "weights")
+
+    def __init__(
+        self,
+        cost: float,
+        grad: FloatArray,
+        hessian: scipy.sparse.csc_matrix | Callable[[], scipy.sparse.csc_matrix],
+        residuals: list[FloatArray],
+        weights: list[FloatArray],
+        *,
+        jacobians: list[FloatArray] | None = None,
+    ) -> None:
+        self.cost, self.grad, self.residuals, self.weights = cost, grad, residuals, weights
+        self._hessian, self._jacobians = hessian, jacobians
+
+    @property
+    def hessian(self) -> scipy.sparse.csc_matrix:
+        """``H = JᵀWJ`` (CSC, both triangles), assembled at the first access."""
+        if callable(self._hessian):
+            self._hessian, self._jacobians = self._hessian(), None
+        return self._hessian
 
     def is_finite(self) -> bool:
-        """Whether the cost, the gradient and ``H`` are all finite."""
-        return bool(math.isfinite(self.cost) and np.isfinite(self.grad).all() and np.isfinite(self.hessian.data).all())
+        """Whether the cost, the gradient and ``H`` (while it is not assembled: the Jacobians
+        it is made of) are all finite."""
+        if not (math.isfinite(self.cost) and np.isfinite(self.grad).all()):
+            return False
+        if callable(self._hessian) and self._jacobians is not None:
+            return all(bool(np.isfinite(j).all()) for j in self._jacobians)
+        return bool(np.isfinite(self.hessian.data).all())
+
+    def __repr__(self) -> str:
+        assembled = "assembled" if not callable(self._hessian) else "not assembled"
+        return f"Linearization(cost={self.cost!r}, grad shape {np.shape(self.grad)}, H {assembled})"
 
 
 def _side_by_side(jacobians: Sequence[Any]) -> FloatArray | None:
@@ -315,7 +354,8 @@ class LeastSquaresProblem(Problem):
 
         The last one is remembered per thread, keyed on the value of ``x`` (a
         private copy of it), so asking again at the same point costs a comparison;
-        after :meth:`trial_cost` at the same point only ``H`` and ``g`` are assembled.
+        after :meth:`trial_cost` at the same point only ``g`` is assembled. ``H`` is
+        assembled at its first use (:attr:`Linearization.hessian`).
 
         Raises
         ------
@@ -332,10 +372,16 @@ class LeastSquaresProblem(Problem):
         structure = self._structure or self._build_structure(residuals)
         # Plain least squares weighs every edge by 1: the assembly skips the product.
         scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
-        h, g = structure.normal_equations(blocks, residuals, scaling)
-        if self._fixed_diagonal is not None:  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
-            h = structure.add_diagonal(h, self._fixed_diagonal, inplace=True)
-        lin = Linearization(cost, g.reshape(self._layout.tangent_shape), h, residuals, weights)
+        g = structure.gradient(blocks, residuals, scaling)
+        fixed = self._fixed_diagonal
+
+        def hessian() -> scipy.sparse.csc_matrix:
+            h = structure.hessian(blocks, scaling)
+            if fixed is not None:  # H is a fresh matrix: 1 on the fixed variables' diagonal, in place
+                h = structure.add_diagonal(h, fixed, inplace=True)
+            return h
+
+        lin = Linearization(cost, g.reshape(self._layout.tangent_shape), hessian, residuals, weights, jacobians=blocks)
         self._local.linearization = (key, lin)
         return lin
 

@@ -49,6 +49,16 @@ def test_normal_equations_match_dense(graph, weighted):
     np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12 * np.abs(g_ref).max())
 
 
+@pytest.mark.parametrize("weighted", [False, True])
+def test_hessian_and_gradient_alone_are_the_normal_equations(graph, weighted):
+    rng, dims, factors, S = graph
+    blocks, residuals, weights = random_values(rng, dims, factors)
+    w = weights if weighted else None
+    H, g = S.normal_equations(blocks, residuals, w)
+    np.testing.assert_array_equal(S.hessian(blocks, w).toarray(), H.toarray())
+    np.testing.assert_allclose(S.gradient(blocks, residuals, w), g, rtol=0, atol=1e-13 * np.abs(g).max())
+
+
 def test_pattern_is_the_touched_blocks_plus_the_diagonal(graph):
     rng, dims, factors, S = graph
     # With all-ones blocks every touched block pair is structurally nonzero in JᵀJ.

@@ -273,3 +273,62 @@ def test_a_rejected_trial_does_not_stay_kept(make, monkeypatch):
     counted.trial_cost(x0)
     counted.discard_trial()
     assert not counted.kept_at(x0)
+
+
+def _counting_hessians(monkeypatch):
+    """The number of ``H`` assemblies (``BlockStructure.hessian`` calls), as a one-entry list."""
+    from manopt_lie.linalg import BlockStructure
+
+    count, assemble = [0], BlockStructure.hessian
+
+    def counted(self, *args, **kw):
+        count[0] += 1
+        return assemble(self, *args, **kw)
+
+    monkeypatch.setattr(BlockStructure, "hessian", counted)
+    return count
+
+
+@pytest.mark.parametrize("make", [LevenbergMarquardt, GaussNewton, Dogleg])
+def test_the_last_point_of_a_run_assembles_no_hessian(make, monkeypatch):
+    """``H`` is assembled where a step is computed from it: one per iteration, none at the
+    point where the run stops, which still reports its gradient norm."""
+    problem, _, x0 = pose_chain(SE3, n=30, closures=8, noise=0.01)
+    count = _counting_hessians(monkeypatch)
+    res = make().solve(problem, x0)
+    assert res.status is Status.COST_DECREASE and res.nit > 0
+    assert count[0] == res.nit
+    lin = problem.linearize(res.x)  # remembered: its H is assembled on demand, once
+    assert res.grad_norm == pytest.approx(float(np.linalg.norm(lin.grad)), rel=1e-12)
+    h = lin.hessian
+    assert count[0] == res.nit + 1 and lin.hessian is h
+
+
+def test_a_deferred_hessian_is_the_normal_equations_and_checks_its_jacobians(monkeypatch):
+    problem, _, x0 = pose_chain(SE3, n=12, closures=4, noise=0.01)
+    count = _counting_hessians(monkeypatch)
+    lin = problem.linearize(x0)
+    assert count[0] == 0 and "not assembled" in repr(lin)
+    evaluation = problem._evaluate(x0)
+    h, g = problem.structure.normal_equations(evaluation[2], evaluation[1])
+    h = problem.structure.add_diagonal(h, problem._fixed_diagonal)  # the gauge's fixed pose
+    np.testing.assert_allclose(lin.grad.reshape(-1), g, rtol=0, atol=1e-13 * np.abs(g).max())
+    assert lin.is_finite() and count[0] == 0  # the Jacobians checked, H still deferred
+    np.testing.assert_array_equal(lin.hessian.toarray(), h.toarray())
+    assert count[0] == 1 and "assembled" in repr(lin)
+    jacobians = [np.array(evaluation[2][0])]
+    jacobians[0][3, 0, 0] = np.inf
+    from manopt_lie.optim import Linearization
+
+    deferred = Linearization(lin.cost, lin.grad, lambda: h, lin.residuals, lin.weights, jacobians=jacobians)
+    assert not deferred.is_finite()
+
+
+def test_gradient_solvers_on_least_squares_assemble_no_hessian(monkeypatch):
+    """Smooth solvers ask a least-squares problem for gradients only: no ``H`` is assembled."""
+    from manopt_lie.optim import ConjugateGradient
+
+    problem, _, x0 = pose_chain(SE2, n=20, closures=6, noise=0.01)
+    count = _counting_hessians(monkeypatch)
+    res = ConjugateGradient(max_iterations=30).solve(problem, x0)
+    assert res.nit > 0 and count[0] == 0
