@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["FactorIndex", "check_factor", "exclusive_cumsum", "index_dtype"]
+__all__ = ["FactorIndex", "check_factor", "exclusive_cumsum", "index_dtype", "same_buffer"]
 
 IntArray = NDArray[np.intp]
 
@@ -15,6 +15,14 @@ IntArray = NDArray[np.intp]
 def index_dtype(maxval: int) -> type[np.signedinteger]:
     """The index dtype SciPy keeps without copying (int32 when it fits)."""
     return np.int32 if maxval < np.iinfo(np.int32).max else np.int64
+
+
+def same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether ``a`` and ``b`` are the same memory seen with the same dtype and length (e.g. a
+    pattern's index array and the view of it a SciPy matrix holds)."""
+    return a is b or (
+        a.dtype == b.dtype and a.shape == b.shape and a.__array_interface__["data"] == b.__array_interface__["data"]
+    )
 
 
 def exclusive_cumsum(a: IntArray) -> IntArray:

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ShapeError
 from ._analyses import ANALYSES, pattern_key
 from ._backends import _CHOLMOD, _PACKAGES, BACKENDS, Backend, available_backends
+from ._factors import same_buffer
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
@@ -25,13 +26,6 @@ __all__ = ["CholeskySolver"]
 FloatArray = NDArray[np.float64]
 
 _NO_STATS: Mapping[str, float] = MappingProxyType({})
-
-
-def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether ``a`` and ``b`` are the same memory seen with the same dtype and length."""
-    return a is b or (
-        a.dtype == b.dtype and a.shape == b.shape and a.__array_interface__["data"] == b.__array_interface__["data"]
-    )
 
 
 def _check_square(H: Any) -> sp.csc_matrix:
@@ -179,7 +173,7 @@ class CholeskySolver:
             H.sum_duplicates()
         kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
         trusted = self._trusted is not None and all(
-            _same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
+            same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
         )
         blocks = self._structure.pattern_digest() if trusted and self._structure is not None else None
         key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, blocks)
@@ -220,7 +214,7 @@ class CholeskySolver:
         """Whether ``H`` (CSC) has the pattern of the last :meth:`analyze`."""
         if self._indptr is None or self._indices is None or H.format != "csc":
             return False
-        if _same_buffer(H.indptr, self._indptr) and _same_buffer(H.indices, self._indices):
+        if same_buffer(H.indptr, self._indptr) and same_buffer(H.indices, self._indices):
             return True
         return bool(np.array_equal(H.indptr, self._indptr) and np.array_equal(H.indices, self._indices))
 

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._analyses import digest
-from ._factors import FactorIndex, check_factor, exclusive_cumsum, index_dtype
+from ._factors import FactorIndex, check_factor, exclusive_cumsum, index_dtype, same_buffer
 
 __all__ = ["BlockStructure"]
 
@@ -373,9 +373,19 @@ class BlockStructure:
         blocks_, weights_ = self._check_blocks(blocks), self._check_weights(weights)
         return self._hessian(blocks_, weights_), self._gradient(blocks_, self._check_residuals(residuals), weights_)
 
-    def hessian(self, blocks: Sequence[ArrayLike], weights: Sequence[ArrayLike | None] | None = None) -> sp.csc_matrix:
-        """``H = JᵀWJ`` alone (see :meth:`normal_equations`): a fresh matrix of the fixed pattern."""
-        return self._hessian(self._check_blocks(blocks), self._check_weights(weights))
+    def hessian(
+        self, blocks: Sequence[ArrayLike], weights: Sequence[ArrayLike | None] | None = None, *,
+        out: sp.csc_matrix | None = None,
+    ) -> sp.csc_matrix:
+        """``H = JᵀWJ`` alone (see :meth:`normal_equations`): a fresh matrix of the fixed pattern,
+        or ``out`` (a matrix of this structure, e.g. the ``H`` of an earlier point) with its
+        values overwritten — no new ``nnz`` values to allocate and fault in."""
+        if out is not None and not (
+            out.format == "csc" and same_buffer(out.indptr, self._indptr) and same_buffer(out.indices, self._indices)
+            and out.data.dtype == np.float64 and out.data.flags.c_contiguous and out.data.flags.writeable
+        ):  # fmt: skip
+            raise ValueError("hessian(out=): out must be an H of this structure (its indptr and indices)")
+        return self._hessian(self._check_blocks(blocks), self._check_weights(weights), out)
 
     def gradient(
         self,
@@ -413,10 +423,16 @@ class BlockStructure:
             out.append(w)
         return out
 
-    def _hessian(self, blocks: list[FloatArray], weights: list[FloatArray | None]) -> sp.csc_matrix:
-        """``Σ_e w_e A_eᵀA_e`` scattered into a fresh ``H``."""
+    def _hessian(
+        self, blocks: list[FloatArray], weights: list[FloatArray | None], out: sp.csc_matrix | None = None
+    ) -> sp.csc_matrix:
+        """``Σ_e w_e A_eᵀA_e`` scattered into a fresh ``H`` (or into ``out``, zeroed first)."""
         hess_vals, _, weighted = self._workspaces()
-        data = np.zeros(self.nnz)
+        if out is None:
+            data = np.zeros(self.nnz)
+        else:
+            data = out.data
+            data.fill(0.0)
         for k, (a, w, f) in enumerate(zip(blocks, weights, self._factors, strict=True)):
             hs, width, step = self._hess_scatter[k], f.width, self._chunks[k]
             # Chunks of edges: the products of one chunk stay in cache and in a small workspace,
@@ -433,7 +449,7 @@ class BlockStructure:
                     np.multiply(ac, w[e0:e1, None, None], out=aw)
                 prod = np.matmul(aw.transpose(0, 2, 1), ac, out=hess_vals[: c * width * width].reshape(c, width, width))
                 np.add.at(data, hs[e0 * width * width : e1 * width * width], prod.reshape(-1))
-        return self._csc(data)
+        return self._csc(data) if out is None else out
 
     def _gradient(
         self, blocks: list[FloatArray], residuals: list[FloatArray], weights: list[FloatArray | None]

@@ -120,6 +120,7 @@ class NonlinearLeastSquares(Optimizer):
             if step.accepted:
                 new = self._linearize(run, problem, step.x)
                 if new.is_finite():
+                    new.recycle(lin)  # the next H overwrites this one's: one H resident, not two
                     f_prev, x, lin = lin.cost, step.x, new
                 else:
                     step = self._reject_nonfinite(step, state)

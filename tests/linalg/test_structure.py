@@ -50,6 +50,22 @@ def test_normal_equations_match_dense(graph, weighted):
     # Each half alone (a linearization's deferred H, a gradient-only solver) is the same.
     np.testing.assert_array_equal(S.hessian(blocks, w).toarray(), H.toarray())
     np.testing.assert_allclose(S.gradient(blocks, residuals, w), g, rtol=0, atol=1e-13 * np.abs(g).max())
+    # Written over an earlier H of the structure (its values all overwritten): the same matrix.
+    old = S.hessian(*random_values(rng, dims, factors)[::2])
+    old.data[:] = np.nan
+    data = old.data
+    assert S.hessian(blocks, w, out=old) is old and old.data is data
+    np.testing.assert_array_equal(old.toarray(), H.toarray())
+
+
+def test_hessian_out_must_be_of_the_structure(graph):
+    rng, dims, factors, S = graph
+    blocks = random_values(rng, dims, factors)[0]
+    H = S.hessian(blocks)
+    foreign = H.copy()  # the same pattern, but not the structure's index arrays
+    for bad in (foreign, S.hessian(blocks).astype(np.float32), H.tocsr()):
+        with pytest.raises(ValueError, match="out must be an H of this structure"):
+            S.hessian(blocks, out=bad)
 
 
 def test_pattern_is_the_touched_blocks_plus_the_diagonal(graph):

@@ -322,6 +322,51 @@ def test_a_deferred_hessian_is_the_normal_equations_and_checks_its_jacobians(mon
     assert not deferred.is_finite()
 
 
+def test_a_recycled_hessian_is_assembled_over_the_old_one():
+    """``new.recycle(old)``: the new ``H`` is written into the old one's arrays (the same
+    values as a fresh assembly), and the old linearization gives up its ``H``."""
+    problem, _, x0 = pose_chain(SE3, n=12, closures=4, noise=0.01)
+    old = problem.linearize(x0)
+    h_old = old.hessian
+    data = h_old.data
+    x1 = problem.manifold.retr(x0, 1e-2 * np.ones_like(old.grad))
+    fresh = problem.linearize(x1).hessian.toarray()
+    problem.linearize(x0)  # a new point, then x1 again: a new linearization, H deferred
+    new = problem.linearize(x1)
+    new.recycle(old)
+    assert "recycled" in repr(old)
+    with pytest.raises(RuntimeError, match="recycled"):
+        old.hessian  # noqa: B018
+    assert new.hessian is h_old and new.hessian.data is data
+    np.testing.assert_array_equal(new.hessian.toarray(), fresh)
+    # No-ops: an assembled H stays; an old H never assembled, or given up, gives nothing.
+    new.recycle(problem.linearize(x0))
+    assert new.hessian is h_old
+    deferred = problem.linearize(problem.manifold.retr(x1, 1e-2 * np.ones_like(old.grad)))
+    deferred.recycle(old)
+    assert deferred.hessian is not h_old
+
+
+def test_an_accepted_step_recycles_the_hessian(monkeypatch):
+    """LM, GN and the dogleg assemble each iteration's ``H`` over the last one: one ``H`` of
+    the problem is alive at a time (a 10⁵-pose grid: 23 MB less at the solve's peak)."""
+    outs, assemble = [], BlockStructure.hessian
+
+    def recording(self, *args, out=None, **kw):
+        h = assemble(self, *args, out=out, **kw)
+        outs.append((out, h.data.__array_interface__["data"][0]))
+        return h
+
+    monkeypatch.setattr(BlockStructure, "hessian", recording)
+    for make in (LevenbergMarquardt, GaussNewton, Dogleg):
+        problem, _, x0 = pose_chain(SE3, n=30, closures=8, noise=0.05)
+        outs.clear()
+        res = make().solve(problem, x0)
+        assert res.status is Status.COST_DECREASE and res.nit >= 2
+        assert outs[0][0] is None and all(out is not None for out, _ in outs[1:])
+        assert len({address for _, address in outs}) == 1
+
+
 def test_gradient_solvers_on_least_squares_assemble_no_hessian(monkeypatch):
     """Smooth solvers ask a least-squares problem for gradients only: no ``H`` is assembled."""
     problem, _, x0 = pose_chain(SE2, n=20, closures=6, noise=0.01)
