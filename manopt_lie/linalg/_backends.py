@@ -27,6 +27,9 @@ values (``factorize(data)``) and solves (``solve(b)``):
   the Cholesky factorization written as LU. On pose graphs this ordering
   factorizes faster under SuperLU than COLAMD or minimum degree on ``H + Hᵀ``
   (which fills less but runs slower), see ``benchmarks/bench_linalg.py``.
+- ``dense`` (SciPy's LAPACK, always present): ``H`` scattered into a dense matrix and
+  factored by ``potrf``, no ordering and no analysis beyond the scatter positions. For
+  small systems, where a sparse factorization is all call overhead (:data:`DENSE_MAX`).
 """
 
 from __future__ import annotations
@@ -38,12 +41,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
+from scipy.linalg import lapack
 
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._triangles import check_diagonal, columns, coordinate_major_triangle, triangle
 from .errors import SingularSystemError
 
-__all__ = ["BACKENDS", "Backend", "available_backends", "surrogate_values"]
+__all__ = ["BACKENDS", "DENSE_MAX", "Backend", "available_backends", "surrogate_values"]
 
 FloatArray = NDArray[np.float64]
 IndexArray = NDArray[np.signedinteger]
@@ -144,6 +148,42 @@ class _QDLDL:
 
     def solve(self, b: FloatArray) -> FloatArray:
         return np.asarray(self._solver.solve(b), dtype=np.float64)
+
+
+DENSE_MAX = 128
+"""Systems of at most this order are factored dense (``dense``) by a solver bound to a structure
+with the backend chosen automatically (:meth:`~manopt_lie.linalg.CholeskySolver.bind`)."""
+
+
+class _Dense:
+    """LAPACK's Cholesky ``H = LLᵀ`` (``potrf``) of ``H`` scattered into a dense matrix."""
+
+    def __init__(self, indptr: IndexArray, indices: IndexArray) -> None:
+        n = indptr.size - 1
+        cols = columns(indptr)
+        check_diagonal(cols, indices == cols)
+        # Entry (i, j) of the column-major (Fortran) matrix LAPACK reads sits at j·n + i.
+        self._position = cols.astype(np.intp) * n + indices
+        self._n = n
+        self._factor: FloatArray | None = None
+
+    def factorize(self, data: FloatArray) -> None:
+        n = self._n
+        a = np.zeros(n * n)
+        a[self._position] = data
+        factor, info = lapack.dpotrf(a.reshape((n, n), order="F"), lower=1, clean=0, overwrite_a=1)
+        if info != 0:
+            self._factor = None
+            reason = f"leading minor {info} not positive" if info > 0 else f"argument {-info} invalid"
+            raise SingularSystemError(f"dense Cholesky factorization failed: {reason}")
+        self._factor = factor
+
+    def solve(self, b: FloatArray) -> FloatArray:
+        assert self._factor is not None, "factorize() before solve()"
+        x, info = lapack.dpotrs(self._factor, b, lower=1)
+        if info != 0:
+            raise SingularSystemError(f"dense Cholesky solve failed (argument {-info} invalid)")
+        return np.asarray(x, dtype=np.float64)
 
 
 SUPERNODAL = 1
@@ -258,16 +298,17 @@ class _CHOLMOD:
         return perm if self._coords is None else self._coords[perm]
 
 
-BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD]] = {
+BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD] | type[_Dense]] = {
     "cholmod": _CHOLMOD,
     "qdldl": _QDLDL,
     "superlu": _SuperLU,
+    "dense": _Dense,
 }
 _PACKAGES = {"cholmod": "cvxopt", "qdldl": "qdldl"}
 
 
 def available_backends() -> tuple[str, ...]:
-    """Names of the backends usable here, fastest first (``superlu`` is always last)."""
+    """Names of the sparse backends usable here, fastest first (``superlu`` always), then ``dense``."""
     usable = []
     for name, package in _PACKAGES.items():
         try:
@@ -275,4 +316,4 @@ def available_backends() -> tuple[str, ...]:
         except ImportError:
             continue
         usable.append(name)
-    return (*usable, "superlu")
+    return (*usable, "superlu", "dense")

@@ -186,6 +186,8 @@ def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol:
     SingularSystemError
         If ``H`` is not numerically positive definite (e.g. a pose graph without a fixed gauge).
     """
+    if backend != "auto" and backend not in _FACTORS:
+        raise ValueError(f"selected inversion: unknown backend {backend!r}; choose 'auto' or one of {sorted(_FACTORS)}")
     solver = CholeskySolver(backend, rtol=rtol, supernodal=True)  # relaxed supernodes: a short loop
     H = _check_square(H)
     if not H.has_canonical_format:

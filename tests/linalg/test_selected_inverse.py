@@ -132,3 +132,8 @@ def test_singular_and_bad_input(backend):
         cholesky_factor(sp.eye(3, format="csc"), "mumps")
     with pytest.raises(ValueError, match="diagonal first"):
         Supernodes(sp.csc_matrix(np.array([[0.0, 0], [1, 1]])))
+
+
+def test_a_factor_needs_a_sparse_backend(rng):
+    with pytest.raises(ValueError, match="unknown backend 'dense'"):
+        cholesky_factor(random_spd(rng), "dense")

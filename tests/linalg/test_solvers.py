@@ -47,7 +47,23 @@ def system(rng):
 
 def test_auto_prefers_the_fastest_available_backend():
     assert CholeskySolver().backend == BACKENDS[0]
-    assert BACKENDS[-1] == "superlu"
+    assert BACKENDS[-2:] == ("superlu", "dense")
+
+
+@pytest.mark.parametrize("n_poses", [4, 60])
+def test_auto_binds_small_structures_to_the_dense_backend(rng, n_poses):
+    """A bound solver of an automatic backend factors systems of order ≤ DENSE_MAX dense,
+    with the same solution; a backend asked for by name, or supernodes, stay sparse."""
+    S, blocks, residuals = pose_graph(rng, n_poses=n_poses, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    small = S.n <= _backends.DENSE_MAX
+    assert small == (n_poses == 4)
+    bound = CholeskySolver().bind(S)
+    assert bound.backend == ("dense" if small else BACKENDS[0])
+    x_ref = np.linalg.solve(H.toarray(), g)
+    assert np.linalg.norm(bound(H, g) - x_ref) <= 1e-10 * np.linalg.norm(x_ref)
+    for template in (CholeskySolver(BACKENDS[0]), CholeskySolver(supernodal=True)):
+        assert template.bind(S).backend == BACKENDS[0]
 
 
 def test_solves_spd_systems(solver, system):
