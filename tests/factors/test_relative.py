@@ -73,6 +73,26 @@ def test_the_fused_kernel_in_passes_equals_one_pass(rng, group, noise, monkeypat
     assert j_i5.base is j_j5.base  # the two slots' halves of one array, as in one pass
 
 
+@pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
+def test_one_information_given_per_edge_is_kept_once(rng, group):
+    """Per-edge information matrices that are all one matrix whiten as the shared model does
+    (the fused kernel keeps the one matrix); a single different edge keeps them per edge."""
+    xi, xj, z = group.random(rng, (M,)), group.random(rng, (M,)), group.random(rng, (M,))
+    a = rng.standard_normal((group.dim, group.dim))
+    omega = a @ a.T + group.dim * np.eye(group.dim)
+    shared = between_factor(pairs(), z, Information(omega)).residual(xi, xj, jac=True)
+    repeated = np.repeat(omega[None], M, axis=0)
+    per_edge = between_factor(pairs(), z, Information(repeated)).residual(xi, xj, jac=True)
+    np.testing.assert_allclose(per_edge[0], shared[0], rtol=0, atol=1e-13)
+    for j, j_ref in zip(per_edge[1], shared[1], strict=True):
+        np.testing.assert_allclose(j, j_ref, rtol=0, atol=1e-13)
+    repeated[3] *= 2.0  # edge 3's residual grows by √2, the others stay
+    r = between_factor(pairs(), z, Information(repeated)).residual(xi, xj)
+    np.testing.assert_allclose(np.linalg.norm(r, axis=1) ** 2,
+                               np.linalg.norm(shared[0], axis=1) ** 2 * np.where(np.arange(M) == 3, 2.0, 1.0),
+                               rtol=1e-12)  # fmt: skip
+
+
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
 @pytest.mark.parametrize("regime", REGIMES)
 def test_prior_jacobians(rng, group, regime):
