@@ -76,10 +76,12 @@ def between_factor(
     group, z_inv = type(z), z.inverse()
     if group in FUSED_GROUPS:  # SE(2), SE(3): one fused pass, whitening included (``_poses``)
         model = as_noise_model(noise, len(v), group.dim, name)
-        sqrt_info = None if isinstance(model, Unit) else model.sqrt_information
-        if sqrt_info is not None and sqrt_info.ndim == 3 and (sqrt_info == sqrt_info[0]).all():
-            sqrt_info = sqrt_info[0]  # one matrix for every edge (synthetic graphs): kept once, one product
-        sqrt_info = None if sqrt_info is None else np.ascontiguousarray(sqrt_info)
+        sqrt_info = None
+        if not isinstance(model, Unit):
+            sqrt_info = model.sqrt_information
+            if sqrt_info.ndim == 3 and (sqrt_info == sqrt_info[0]).all():
+                sqrt_info = sqrt_info[0]  # one matrix for every edge (synthetic graphs): kept once, one product
+            sqrt_info = np.ascontiguousarray(sqrt_info)
         fused = between_kernel(group, np.ascontiguousarray(z_inv.as_matrix()), sqrt_info)
 
         def residual(xi: Any, xj: Any, jac: bool = False) -> Any:
