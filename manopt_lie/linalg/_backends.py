@@ -172,17 +172,15 @@ class _Dense:
         a = np.zeros(n * n)
         a[self._position] = data
         factor, info = lapack.dpotrf(a.reshape((n, n), order="F"), lower=1, clean=0, overwrite_a=1)
-        if info != 0:
-            self._factor = None
-            reason = f"leading minor {info} not positive" if info > 0 else f"argument {-info} invalid"
-            raise SingularSystemError(f"dense Cholesky factorization failed: {reason}")
-        self._factor = factor
+        self._factor = factor if info == 0 else None
+        if info > 0:  # (info < 0 would be an invalid argument: a bug here)
+            raise SingularSystemError(f"dense Cholesky factorization failed: leading minor {info} not positive")
+        assert info == 0, f"dpotrf: argument {-info} invalid"
 
     def solve(self, b: FloatArray) -> FloatArray:
         assert self._factor is not None, "factorize() before solve()"
         x, info = lapack.dpotrs(self._factor, b, lower=1)
-        if info != 0:
-            raise SingularSystemError(f"dense Cholesky solve failed (argument {-info} invalid)")
+        assert info == 0, f"dpotrs: argument {-info} invalid"
         return np.asarray(x, dtype=np.float64)
 
 

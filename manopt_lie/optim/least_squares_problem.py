@@ -17,6 +17,7 @@ gradient ``Σ w Jᵀr`` and the Gauss-Newton Hessian ``Σ w JᵀJ`` with IRLS we
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections.abc import Callable, Mapping, Sequence
@@ -120,7 +121,7 @@ class Linearization:
         ``H`` is not assembled.
     """
 
-    __slots__ = ("_hessian", "_jacobians", "_storage", "cost", "grad", "residuals", "weights")
+    __slots__ = ("_hessian", "_jacobians", "cost", "grad", "residuals", "weights")
 
     def __init__(
         self,
@@ -134,15 +135,12 @@ class Linearization:
     ) -> None:
         self.cost, self.grad, self.residuals, self.weights = cost, grad, residuals, weights
         self._hessian, self._jacobians = hessian, jacobians
-        self._storage: scipy.sparse.csc_matrix | None = None
 
     @property
     def hessian(self) -> scipy.sparse.csc_matrix:
         """``H = JᵀWJ`` (CSC, both triangles), assembled at the first access."""
         if callable(self._hessian):
-            build, storage = self._hessian, self._storage
-            self._hessian = build() if storage is None else build(out=storage)
-            self._jacobians = self._storage = None
+            self._hessian, self._jacobians = self._hessian(), None
         return self._hessian
 
     def recycle(self, old: Linearization) -> None:
@@ -157,7 +155,7 @@ class Linearization:
         """
         if old is self or not callable(self._hessian) or callable(old._hessian):
             return
-        self._storage, old._hessian = old._hessian, _recycled
+        self._hessian, old._hessian = functools.partial(self._hessian, out=old._hessian), _recycled
 
     def is_finite(self) -> bool:
         """Whether the cost, the gradient and ``H`` (while it is not assembled: the Jacobians
