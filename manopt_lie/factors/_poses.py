@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._vm import VM_EDGES, between_terms
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 
 __all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
@@ -97,9 +98,28 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
         np.negative(minus_adjoint, out=minus_adjoint)  # contiguous: ~10× faster than negating the view j_i
         np.matmul(j_j, minus_adjoint, out=j_i)
 
+    def small(mi: FloatArray, mj: FloatArray, jac: bool) -> Any:
+        """The same on CasADi's virtual machine (:mod:`manopt_lie._vm`), whitening and products here."""
+        terms = between_terms(group, mi, mj, z_inv, jac)
+        r = whiten(terms[0], 0, len(mi))
+        if not jac:
+            return r
+        _, jr_inv, adjoint_y_inv = terms
+        j_out = np.empty((len(mi), k, 2 * k))
+        j_i, j_j = j_out[:, :, :k], j_out[:, :, k:]
+        if L is None:
+            j_j[...] = jr_inv
+        else:
+            np.matmul(L, jr_inv, out=j_j)
+        np.negative(adjoint_y_inv, out=adjoint_y_inv)
+        np.matmul(j_j, adjoint_y_inv, out=j_i)
+        return r, [j_i, j_j]
+
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
         mi, mj = xi.as_matrix(), xj.as_matrix()
         m = len(mi)
+        if m <= VM_EDGES:
+            return small(mi, mj, jac)
         r_out = np.empty((m, k))
         j_out = np.empty((m, k, 2 * k)) if jac else None
         for a in range(0, m, EDGE_CHUNK):  # a few chunks: their temporaries are reused, not paged in anew

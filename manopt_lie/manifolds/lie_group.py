@@ -34,10 +34,12 @@ from typing import Any
 
 import numpy as np
 
+from .._vm import VM_POINTS, rplus
 from ..errors import ShapeError
 from ..lie import SE2, SE3, LieGroup, RnGroup
 from ..lie._checks import FloatArray, as_batch
 from ..lie._matrix import assemble, split
+from ..lie._series import HUGE
 from .base import Manifold, coordinate_inner
 
 
@@ -118,6 +120,10 @@ class LieGroupManifold(Manifold):
 
     def retr(self, x: LieGroup, v: FloatArray) -> LieGroup:
         if self.geometry == "group":
+            if type(x) in (SE2, SE3) and len(x.batch_shape) == 1 and 1 < len(x) <= VM_POINTS:
+                t = x._tangent(v)
+                if t.shape == (len(x), x.dim) and np.abs(t).max() < HUGE:  # huge angles: the scale-safe kernels
+                    return x._wrap(rplus(type(x), x.as_matrix(), t))  # a small batch: CasADi's virtual machine
             return x.rplus(v)
         r, t = x.rotation(), x.translation()  # type: ignore[attr-defined]
         d = self.group.point_dim

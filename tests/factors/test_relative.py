@@ -36,9 +36,16 @@ def pairs(m: int = M) -> np.ndarray:
     return np.c_[np.arange(m), np.arange(m, 2 * m)]
 
 
-@pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.__name__)
+# SE(2)/SE(3) between factors of up to ``VM_EDGES`` edges run on CasADi's virtual machine;
+# ``"arrays"`` sends them through the array kernels instead.
+KERNELS = [(g, "default") for g in GROUPS] + [(g, "arrays") for g in _poses.FUSED_GROUPS]
+
+
+@pytest.mark.parametrize(("group", "kernel"), KERNELS, ids=lambda g: getattr(g, "__name__", g))
 @pytest.mark.parametrize("regime", REGIMES)
-def test_between_jacobians(rng, group, regime):
+def test_between_jacobians(rng, group, kernel, regime, monkeypatch):
+    if kernel == "arrays":
+        monkeypatch.setattr(_poses, "VM_EDGES", 0)
     xi, z = group.random(rng, (M,)), group.random(rng, (M,))
     # X_j such that the residual Log(Z⁻¹ X_i⁻¹ X_j) lands in the regime.
     xj = xi @ z @ sample(group, rng, regime)
@@ -53,8 +60,9 @@ def test_between_jacobians(rng, group, regime):
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
 @pytest.mark.parametrize("noise", ["unit", "shared", "per edge"])
 def test_the_fused_kernel_in_passes_equals_one_pass(rng, group, noise, monkeypatch):
-    """The SE(d) kernel runs in passes of ``EDGE_CHUNK`` edges; passes of 5 (the last one
+    """The SE(d) array kernel runs in passes of ``EDGE_CHUNK`` edges; passes of 5 (the last one
     short) give what one pass gives."""
+    monkeypatch.setattr(_poses, "VM_EDGES", 0)
     xi, xj, z = group.random(rng, (M,)), group.random(rng, (M,)), group.random(rng, (M,))
     diag = rng.uniform(1, 4, (M, group.dim))
     model = {
@@ -71,6 +79,44 @@ def test_the_fused_kernel_in_passes_equals_one_pass(rng, group, noise, monkeypat
     np.testing.assert_allclose(j_j5, j_j, rtol=0, atol=1e-14)
     np.testing.assert_allclose(factor.residual(xi, xj), r, rtol=0, atol=1e-15)
     assert j_i5.base is j_j5.base  # the two slots' halves of one array, as in one pass
+
+
+def _exact(group: type[LieGroup], angle: float, m: int) -> LieGroup:
+    """``m`` copies of a rotation by exactly ``angle`` (0 or π) about the first axis, no translation."""
+    c = np.cos(angle).round()
+    rotation = np.diag([1.0, c, c]) if group is SE3 else np.diag([c, c])
+    matrix = np.eye(len(rotation) + 1)
+    matrix[: len(rotation), : len(rotation)] = rotation
+    return group.from_matrix(np.repeat(matrix[None], m, axis=0))
+
+
+@pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
+@pytest.mark.parametrize("regime", [*REGIMES, "identity", "pi"])
+@pytest.mark.parametrize("m", [1, M, _poses.VM_EDGES])
+def test_the_virtual_machine_agrees_with_the_array_kernel(rng, group, regime, m, monkeypatch):
+    """Up to ``VM_EDGES`` edges go through CasADi's virtual machine: residuals and both slots'
+    Jacobians agree with the array kernel to round-off, at the identity and at π exactly, with
+    every noise model."""
+    xi, z = group.random(rng, (m,)), group.random(rng, (m,))
+    if regime in ("identity", "pi"):  # E = Z⁻¹ X_i⁻¹ X_j exactly the identity or a half turn
+        xi, z = group.identity((m,)), group.identity((m,))
+        xj = _exact(group, 0.0 if regime == "identity" else np.pi, m)
+    else:
+        xj = xi @ z @ sample(group, rng, regime, m)
+    a = rng.standard_normal((m, group.dim, group.dim))
+    omega = a @ np.swapaxes(a, 1, 2) + np.eye(group.dim)
+    models = [None, Information(omega[0]), Information(omega)]
+    for model in models:
+        factor = between_factor(pairs(m), z) if model is None else between_factor(pairs(m), z, model)
+        machine = factor.residual(xi, xj, jac=True), factor.residual(xi, xj)
+        monkeypatch.setattr(_poses, "VM_EDGES", 0)
+        arrays = factor.residual(xi, xj, jac=True), factor.residual(xi, xj)
+        monkeypatch.undo()
+        np.testing.assert_allclose(machine[0][0], arrays[0][0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(machine[1], arrays[1], rtol=0, atol=1e-12)
+        for j, j_ref in zip(machine[0][1], arrays[0][1], strict=True):
+            np.testing.assert_allclose(j, j_ref, rtol=0, atol=1e-11)
+        assert np.isfinite(machine[0][1][0]).all()
 
 
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)

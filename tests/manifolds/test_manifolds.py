@@ -23,6 +23,7 @@ from manopt_lie.manifolds import (
     SpecialOrthogonal,
     Sphere,
     Stiefel,
+    lie_group,
 )
 
 # (manifold, Hessian check): "gradient" differentiates the Riemannian gradient along a
@@ -374,6 +375,27 @@ def test_the_decoupled_retraction_moves_positions_along_straight_lines(group):
         gap = decoupled.retr(x, h * v).as_matrix() - plain.retr(x, h * v).as_matrix()
         assert np.abs(gap).max() < 10 * h * h * np.dot(v, v)
     assert repr(decoupled) == f"LieGroupManifold({group.__name__}, geometry='decoupled')"
+
+
+@pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
+@pytest.mark.parametrize("n", [2, 9, lie_group.VM_POINTS, lie_group.VM_POINTS + 1])
+def test_small_batches_retract_on_the_virtual_machine_as_the_group_does(group, n):
+    """Batches of up to ``VM_POINTS`` SE(2)/SE(3) elements retract through CasADi's virtual
+    machine: ``X·Exp(τ)`` to round-off, at ``τ = 0``, small and half-turn steps; a non-finite
+    step raises as ``rplus`` does, and a huge one goes through the scale-safe kernels."""
+    manifold = Power(LieGroupManifold(group), n)
+    rng = np.random.default_rng(n)
+    x = group.random(rng, (n,))
+    v = rng.standard_normal((n, group.dim))
+    v[0] = 0.0
+    v[1, group.point_dim :] *= 1e-9
+    v[-1, group.point_dim :] *= np.pi / np.linalg.norm(v[-1, group.point_dim :])
+    np.testing.assert_allclose(manifold.retr(x, v).as_matrix(), x.rplus(v).as_matrix(), rtol=0, atol=1e-14)
+    v[1, -1] = 1e25
+    np.testing.assert_array_equal(manifold.retr(x, v).as_matrix(), x.rplus(v).as_matrix())
+    v[1, -1] = np.nan
+    with pytest.raises(NonFiniteError, match="tau"):
+        manifold.retr(x, v)
 
 
 def test_landmark_graphs_retract_poses_decoupled():
