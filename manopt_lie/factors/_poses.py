@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._vm import VM_EDGES, between_terms
+from .._kernels import VM_EDGES, between_terms, flat_rows, native_kernel
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 
 __all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
@@ -99,7 +99,7 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
         np.matmul(j_j, minus_adjoint, out=j_i)
 
     def small(mi: FloatArray, mj: FloatArray, jac: bool) -> Any:
-        """The same on CasADi's virtual machine (:mod:`manopt_lie._vm`), whitening and products here."""
+        """The same on CasADi's virtual machine (:mod:`manopt_lie._kernels`), whitening and products here."""
         terms = between_terms(group, mi, mj, z_inv, jac)
         r = whiten(terms[0], 0, len(mi))
         if not jac:
@@ -115,9 +115,27 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
         np.matmul(j_j, adjoint_y_inv, out=j_i)
         return r, [j_i, j_j]
 
+    z_flat = flat_rows(z_inv)
+    l_flat = [] if L is None else flat_rows(L) if per_edge else [np.ascontiguousarray(L).ravel()]
+
+    def compiled(mi: FloatArray, mj: FloatArray, jac: bool) -> Any:
+        """The whole kernel in native code (:func:`manopt_lie._kernels.native_kernel`), or ``None``."""
+        kind = ("whitened " if L is not None else "") + ("between" if jac else "log")
+        kernel = native_kernel(group, kind)
+        if kernel is None:
+            return None
+        m = len(mi)
+        r_out = np.empty((m, k))
+        j_out = np.empty((m, k, 2 * k)) if jac else None
+        kernel(m, [*flat_rows(mi, mj), *z_flat, *l_flat], [r_out] if j_out is None else [r_out, j_out.reshape(m, -1)])
+        return r_out if j_out is None else (r_out, [j_out[:, :, :k], j_out[:, :, k:]])
+
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
         mi, mj = xi.as_matrix(), xj.as_matrix()
         m = len(mi)
+        out = compiled(mi, mj, jac)
+        if out is not None:
+            return out
         if m <= VM_EDGES:
             return small(mi, mj, jac)
         r_out = np.empty((m, k))

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from .._vm import VM_POINTS, rplus
+from .._kernels import rplus
 from ..errors import ShapeError
 from ..lie import SE2, SE3, LieGroup, RnGroup
 from ..lie._checks import FloatArray, as_batch
@@ -120,10 +120,12 @@ class LieGroupManifold(Manifold):
 
     def retr(self, x: LieGroup, v: FloatArray) -> LieGroup:
         if self.geometry == "group":
-            if type(x) in (SE2, SE3) and len(x.batch_shape) == 1 and 1 < len(x) <= VM_POINTS:
+            if type(x) in (SE2, SE3) and len(x.batch_shape) == 1 and len(x) > 1:
                 t = x._tangent(v)
                 if t.shape == (len(x), x.dim) and np.abs(t).max() < HUGE:  # huge angles: the scale-safe kernels
-                    return x._wrap(rplus(type(x), x.as_matrix(), t))  # a small batch: CasADi's virtual machine
+                    y = rplus(type(x), x.as_matrix(), t)  # compiled, or a small batch on CasADi's virtual machine
+                    if y is not None:
+                        return x._wrap(y)
             return x.rplus(v)
         r, t = x.rotation(), x.translation()  # type: ignore[attr-defined]
         d = self.group.point_dim

@@ -11,6 +11,7 @@ from manopt_lie.factors import Diagonal, Information, Isotropic, _poses, between
 from manopt_lie.lie import LieGroup
 from manopt_lie.optim.losses import Huber
 
+from ..kernel_paths import PATHS, use
 from .helpers import assert_jacobians
 
 GROUPS = [SO2, SO3, SE2, SE3, Rn(3), SE23, Sim3]
@@ -36,16 +37,14 @@ def pairs(m: int = M) -> np.ndarray:
     return np.c_[np.arange(m), np.arange(m, 2 * m)]
 
 
-# SE(2)/SE(3) between factors of up to ``VM_EDGES`` edges run on CasADi's virtual machine;
-# ``"arrays"`` sends them through the array kernels instead.
-KERNELS = [(g, "default") for g in GROUPS] + [(g, "arrays") for g in _poses.FUSED_GROUPS]
+# SE(2)/SE(3) between factors run in native code, on CasADi's virtual machine or the array kernels.
+KERNELS = [(g, "native") for g in GROUPS] + [(g, p) for g in _poses.FUSED_GROUPS for p in PATHS[1:]]
 
 
-@pytest.mark.parametrize(("group", "kernel"), KERNELS, ids=lambda g: getattr(g, "__name__", g))
+@pytest.mark.parametrize(("group", "path"), KERNELS, ids=lambda g: getattr(g, "__name__", g))
 @pytest.mark.parametrize("regime", REGIMES)
-def test_between_jacobians(rng, group, kernel, regime, monkeypatch):
-    if kernel == "arrays":
-        monkeypatch.setattr(_poses, "VM_EDGES", 0)
+def test_between_jacobians(rng, group, path, regime, monkeypatch):
+    use(path, monkeypatch)
     xi, z = group.random(rng, (M,)), group.random(rng, (M,))
     # X_j such that the residual Log(Z⁻¹ X_i⁻¹ X_j) lands in the regime.
     xj = xi @ z @ sample(group, rng, regime)
@@ -62,7 +61,7 @@ def test_between_jacobians(rng, group, kernel, regime, monkeypatch):
 def test_the_fused_kernel_in_passes_equals_one_pass(rng, group, noise, monkeypatch):
     """The SE(d) array kernel runs in passes of ``EDGE_CHUNK`` edges; passes of 5 (the last one
     short) give what one pass gives."""
-    monkeypatch.setattr(_poses, "VM_EDGES", 0)
+    use("arrays", monkeypatch)
     xi, xj, z = group.random(rng, (M,)), group.random(rng, (M,)), group.random(rng, (M,))
     diag = rng.uniform(1, 4, (M, group.dim))
     model = {
@@ -93,10 +92,10 @@ def _exact(group: type[LieGroup], angle: float, m: int) -> LieGroup:
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
 @pytest.mark.parametrize("regime", [*REGIMES, "identity", "pi"])
 @pytest.mark.parametrize("m", [1, M, _poses.VM_EDGES])
-def test_the_virtual_machine_agrees_with_the_array_kernel(rng, group, regime, m, monkeypatch):
-    """Up to ``VM_EDGES`` edges go through CasADi's virtual machine: residuals and both slots'
-    Jacobians agree with the array kernel to round-off, at the identity and at π exactly, with
-    every noise model."""
+def test_native_code_and_the_virtual_machine_agree_with_the_array_kernel(rng, group, regime, m, monkeypatch):
+    """Residuals and both slots' Jacobians in native code and (up to ``VM_EDGES`` edges) on
+    CasADi's virtual machine agree with the array kernel to round-off, at the identity and at π
+    exactly, with every noise model."""
     xi, z = group.random(rng, (m,)), group.random(rng, (m,))
     if regime in ("identity", "pi"):  # E = Z⁻¹ X_i⁻¹ X_j exactly the identity or a half turn
         xi, z = group.identity((m,)), group.identity((m,))
@@ -108,15 +107,19 @@ def test_the_virtual_machine_agrees_with_the_array_kernel(rng, group, regime, m,
     models = [None, Information(omega[0]), Information(omega)]
     for model in models:
         factor = between_factor(pairs(m), z) if model is None else between_factor(pairs(m), z, model)
-        machine = factor.residual(xi, xj, jac=True), factor.residual(xi, xj)
-        monkeypatch.setattr(_poses, "VM_EDGES", 0)
-        arrays = factor.residual(xi, xj, jac=True), factor.residual(xi, xj)
-        monkeypatch.undo()
-        np.testing.assert_allclose(machine[0][0], arrays[0][0], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(machine[1], arrays[1], rtol=0, atol=1e-12)
-        for j, j_ref in zip(machine[0][1], arrays[0][1], strict=True):
-            np.testing.assert_allclose(j, j_ref, rtol=0, atol=1e-11)
-        assert np.isfinite(machine[0][1][0]).all()
+        out = {}
+        for path in PATHS:
+            use(path, monkeypatch)
+            out[path] = factor.residual(xi, xj, jac=True), factor.residual(xi, xj)
+            monkeypatch.undo()
+        arrays = out["arrays"]
+        for path in PATHS[:2]:
+            (r, jacobians), residual = out[path]
+            np.testing.assert_allclose(r, arrays[0][0], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(residual, arrays[1], rtol=0, atol=1e-12)
+            for j, j_ref in zip(jacobians, arrays[0][1], strict=True):
+                np.testing.assert_allclose(j, j_ref, rtol=0, atol=1e-11)
+                assert np.isfinite(j).all()
 
 
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, NonFiniteError, NotOnManifoldError, Rn, ShapeError
+from manopt_lie import SE2, SE3, SO2, SO3, LieGroup, NonFiniteError, NotOnManifoldError, Rn, ShapeError, _kernels
 from manopt_lie.lie import RnGroup
 from manopt_lie.manifolds import (
     Blocks,
@@ -23,8 +23,9 @@ from manopt_lie.manifolds import (
     SpecialOrthogonal,
     Sphere,
     Stiefel,
-    lie_group,
 )
+
+from ..kernel_paths import PATHS, use
 
 # (manifold, Hessian check): "gradient" differentiates the Riemannian gradient along a
 # retraction curve and projects (Levi-Civita Hessian of embedded manifolds); "pullback"
@@ -378,11 +379,13 @@ def test_the_decoupled_retraction_moves_positions_along_straight_lines(group):
 
 
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
-@pytest.mark.parametrize("n", [2, 9, lie_group.VM_POINTS, lie_group.VM_POINTS + 1])
-def test_small_batches_retract_on_the_virtual_machine_as_the_group_does(group, n):
-    """Batches of up to ``VM_POINTS`` SE(2)/SE(3) elements retract through CasADi's virtual
-    machine: ``X·Exp(τ)`` to round-off, at ``τ = 0``, small and half-turn steps; a non-finite
-    step raises as ``rplus`` does, and a huge one goes through the scale-safe kernels."""
+@pytest.mark.parametrize("n", [2, 9, _kernels.VM_POINTS, _kernels.VM_POINTS + 1])
+@pytest.mark.parametrize("path", PATHS[:2])
+def test_batches_retract_in_native_code_and_on_the_virtual_machine_as_the_group_does(group, n, path, monkeypatch):
+    """SE(2)/SE(3) batches retract in native code or (up to ``VM_POINTS`` elements) on CasADi's
+    virtual machine: ``X·Exp(τ)`` to round-off, at ``τ = 0``, small and half-turn steps; a
+    non-finite step raises as ``rplus`` does, and a huge one goes through the scale-safe kernels."""
+    use(path, monkeypatch)
     manifold = Power(LieGroupManifold(group), n)
     rng = np.random.default_rng(n)
     x = group.random(rng, (n,))
