@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import shlex
 import shutil
 import subprocess
 import tempfile
@@ -38,9 +39,15 @@ _LOCK = threading.Lock()
 _LIBRARIES: dict[str, Any] = {}  # source hash → loaded library (or None: the build failed)
 
 
+def compiler() -> list[str]:
+    """The C compiler's command: ``$CC`` (split as a shell would, e.g. ``ccache gcc``), else ``cc``."""
+    return shlex.split(os.environ.get("CC") or "cc")
+
+
 def enabled() -> bool:
     """Whether native kernels may be built here: ``MANOPT_LIE_NATIVE`` is not ``0`` and a C compiler is found."""
-    return os.environ.get("MANOPT_LIE_NATIVE", "1") != "0" and shutil.which(os.environ.get("CC", "cc")) is not None
+    command = compiler()
+    return os.environ.get("MANOPT_LIE_NATIVE", "1") != "0" and bool(command) and shutil.which(command[0]) is not None
 
 
 def cache_dir() -> Path:
@@ -116,8 +123,7 @@ def _build(source: str, target: Path) -> None:
     with tempfile.TemporaryDirectory(dir=target.parent) as work:
         c_file, library = Path(work) / "kernels.c", Path(work) / target.name
         c_file.write_text(source)
-        compiler = os.environ.get("CC", "cc")
-        subprocess.run([compiler, *FLAGS, "-o", str(library), str(c_file), "-lm"], check=True, capture_output=True)
+        subprocess.run([*compiler(), *FLAGS, "-o", str(library), str(c_file), "-lm"], check=True, capture_output=True)
         os.replace(library, target)
 
 

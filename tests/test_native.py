@@ -108,3 +108,33 @@ def test_the_groups_native_kernels(group):
     kernels = [_kernels.native_kernel(group, kind) for kind in _kernels.NATIVE_KINDS]
     assert all(k is not None for k in kernels) == _native.enabled()
     assert _kernels.native_kernel(SE2.rotation_group, "rplus") is None
+
+
+def test_a_compiler_command_with_arguments(cache, monkeypatch):
+    """``$CC`` is split as a shell would (``ccache gcc``, ``env cc``)."""
+    monkeypatch.setenv("CC", "env cc")
+    if not _native.enabled():
+        assert _native.compile_functions([_function("wrapped")]) is None
+        return
+    native = _native.compile_functions([_function("wrapped")])["wrapped"]
+    np.testing.assert_allclose(_run(native, np.zeros((1, 3)), np.ones((1, 2)))[0], 1.0)
+
+
+def test_threads_evaluate_a_between_factor_at_once():
+    """The drivers keep their workspace on the stack and ctypes releases the GIL: factors
+    evaluated from several threads at once give what one thread gives."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from manopt_lie.factors import between_factor
+
+    rng = np.random.default_rng(3)
+    m = 2000
+    xi, xj, z = SE3.random(rng, (m,)), SE3.random(rng, (m,)), SE3.random(rng, (m,))
+    factor = between_factor(np.c_[np.arange(m), np.arange(m, 2 * m)], z)
+    r, (j_i, j_j) = factor.residual(xi, xj, jac=True)
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda _: factor.residual(xi, xj, jac=True), range(16)))
+    for r_t, (j_i_t, j_j_t) in results:
+        np.testing.assert_array_equal(r_t, r)
+        np.testing.assert_array_equal(j_i_t, j_i)
+        np.testing.assert_array_equal(j_j_t, j_j)
