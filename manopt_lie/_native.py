@@ -36,7 +36,7 @@ FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
 """Compiler flags: no fused multiply-adds, so the machine code rounds as CasADi's virtual machine does."""
 
 _LOCK = threading.Lock()
-_LIBRARIES: dict[str, Any] = {}  # source hash → loaded library (or None: the build failed)
+_LIBRARIES: dict[str, Any] = {}  # library file name → the loaded library (None: it cannot be built)
 
 
 def compiler() -> list[str]:

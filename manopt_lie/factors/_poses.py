@@ -13,6 +13,10 @@ written straight into the right half of a fresh ``(m, k, 2k)`` array and its pro
 without concatenating them. ``Log``, ``Jr⁻¹`` and ``Ad`` are the groups' array kernels
 (:mod:`manopt_lie.lie._se2`, :mod:`manopt_lie.lie._se3`), small-angle and near-π forms
 included, without the group objects' validation and wrapping on every call.
+
+These array kernels are the last of three paths (:mod:`manopt_lie._kernels`): where native code
+can be built the whole kernel runs compiled, and without it up to ``VM_EDGES`` edges run on
+CasADi's virtual machine; the three agree to round-off.
 """
 
 from __future__ import annotations
