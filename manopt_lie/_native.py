@@ -50,12 +50,16 @@ def enabled() -> bool:
     return os.environ.get("MANOPT_LIE_NATIVE", "1") != "0" and bool(command) and shutil.which(command[0]) is not None
 
 
-def cache_dir() -> Path:
-    """Where compiled libraries are kept."""
+def cache_dir() -> Path | None:
+    """Where compiled libraries are kept (``None``: no home directory to keep them in)."""
     root = os.environ.get("MANOPT_LIE_CACHE")
     if root:
         return Path(root)
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "manopt_lie" / "native"
+    try:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    except (RuntimeError, KeyError):  # no home directory (``Path.home`` finds none)
+        return None
+    return base / "manopt_lie" / "native"
 
 
 class Native:
@@ -139,7 +143,7 @@ def _load(source: str) -> Any:
     with _LOCK:
         if key not in _LIBRARIES:
             _LIBRARIES[key] = None
-            for directory in (cache_dir(), None):
+            for directory in dict.fromkeys((cache_dir(), None)):  # the cache, then a private directory
                 try:
                     target = (directory or Path(tempfile.mkdtemp(prefix="manopt_lie-"))) / key
                     if not target.exists():

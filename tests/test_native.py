@@ -138,3 +138,18 @@ def test_threads_evaluate_a_between_factor_at_once():
         np.testing.assert_array_equal(r_t, r)
         np.testing.assert_array_equal(j_i_t, j_i)
         np.testing.assert_array_equal(j_j_t, j_j)
+
+
+def test_no_home_directory_builds_in_a_private_directory(monkeypatch):
+    def no_home(cls: type) -> None:
+        raise RuntimeError("Could not determine home directory.")  # what Path.home raises
+
+    monkeypatch.delenv("MANOPT_LIE_CACHE", raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setattr(_native.Path, "home", classmethod(no_home))
+    monkeypatch.setattr(_native, "_LIBRARIES", {})
+    assert _native.cache_dir() is None
+    if not _native.enabled():
+        return
+    native = _native.compile_functions([_function("homeless")])["homeless"]
+    np.testing.assert_allclose(_run(native, np.zeros((1, 3)), np.ones((1, 2)))[0], 1.0)
