@@ -17,9 +17,11 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import platform
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 from collections.abc import Sequence
@@ -132,8 +134,10 @@ def _build(source: str, target: Path) -> None:
 
 
 def library_name(source: str) -> str:
-    """The file name of the library of ``source`` (the hash of the source and the flags)."""
-    return f"kernels-{hashlib.sha256(chr(0).join([*FLAGS, source]).encode()).hexdigest()[:24]}.so"
+    """The file name of the library of ``source``: the hash of the source, the flags, the compiler
+    and the machine (a cache shared by different machines keeps one library for each)."""
+    key = chr(0).join([*FLAGS, *compiler(), sys.platform, platform.machine(), source])
+    return f"kernels-{hashlib.sha256(key.encode()).hexdigest()[:24]}.so"
 
 
 def _load(source: str) -> Any:

@@ -32,6 +32,7 @@ from ._factors import exclusive_cumsum
 __all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "triangle"]
 
 IndexArray = NDArray[np.signedinteger]
+Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)
 
 CHUNK = 1 << 16
 """Entries of ``H`` per piece of :func:`triangle`."""
@@ -130,7 +131,6 @@ def coordinate_major_triangle(
     grid = []
     gather = np.empty((int(indptr[-1]) + int(offsets[-1])) // 2, dtype=indptr.dtype)  # (nnz + n) / 2
     done = 0
-    Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)
     shared: dict[tuple[int, int, bool], tuple[Any, Blocks, NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]] = {}
     for b in range(d_max):
         # Column coordinate b holds row coordinates a ≥ b (lower) or a ≤ b (upper); zeros elsewhere.
