@@ -10,8 +10,9 @@ an edge is a few hundred scalar operations (SE(3)'s whole whitened residual and 
 
 1. **native code** (:func:`native_kernel`, :mod:`manopt_lie._native`): the functions compiled to
    C by the system's compiler, at every batch size, the results written straight into the
-   caller's arrays (SE(3), whitened, with Jacobians: 11 edges 17 µs, 297 edges 93 µs, 10⁴ edges
-   3.2 ms, 10⁵ edges 38 ms, against the array kernels' 228 µs, 512 µs, 13.2 ms and 108 ms);
+   caller's arrays (SE(3), whitened, with Jacobians: 11 edges 18 µs, 297 edges 105 µs, 10⁴ edges
+   3.3 ms, 10⁵ edges 40 ms, against the array kernels' 249 µs, 552 µs, 10.4 ms and 114 ms:
+   ``benchmarks/bench_kernels.py``);
 2. **CasADi's virtual machine**, for batches of up to :data:`VM_EDGES` edges or
    :data:`VM_POINTS` retractions, where its ~2 ns an instruction beats NumPy's per-call cost
    (SE(3), 11 edges: 34 against 251 µs; it breaks even at ~250), the products with the
