@@ -54,6 +54,15 @@ class _Algebra:
         self.hat = group.hat
         self.basis = group.hat(np.eye(group.dim))  # (dim, k, k): the generators Eᵢ
         self.gram_inv = np.linalg.inv(np.einsum("ijk,ljk->il", self.basis, self.basis))
+        self.basis.flags.writeable = self.gram_inv.flags.writeable = False  # shared by every manifold of the group
+
+    @staticmethod
+    def of(group: type[LieGroup]) -> _Algebra:
+        """The algebra of ``group``, built once (a problem's manifold is built with every problem)."""
+        algebra = _ALGEBRAS.get(group)
+        if algebra is None:
+            algebra = _ALGEBRAS[group] = _Algebra(group)
+        return algebra
 
     def adjoint_hat(self, m: FloatArray) -> FloatArray:
         """``hat*(M)ᵢ = ⟨Eᵢ, M⟩_F``."""
@@ -67,6 +76,9 @@ class _Algebra:
         """``hat*(H) + ½ hat*(M v^ᵀ + v^ᵀ M)`` for ``M = XᵀG``, ``H = Xᵀ∇²f[·]``."""
         vh = self.hat(v)
         return self.adjoint_hat(h) + 0.5 * self.adjoint_hat(m @ _t(vh) + _t(vh) @ m)
+
+
+_ALGEBRAS: dict[type[LieGroup], _Algebra] = {}
 
 
 class LieGroupManifold(Manifold):
@@ -99,9 +111,9 @@ class LieGroupManifold(Manifold):
         self.geometry = geometry
         self._embedded = geometry != "product"  # the group's tangent coordinates X τ^
         self._euclidean = issubclass(group, RnGroup)  # Rⁿ's ambient space is Rⁿ itself
-        self._algebra = _Algebra(group if self._embedded else group.rotation_group)  # type: ignore[attr-defined]
+        self._algebra = _Algebra.of(group if self._embedded else group.rotation_group)  # type: ignore[attr-defined]
         if geometry == "decoupled":
-            self._rotations = _Algebra(group.rotation_group)  # type: ignore[attr-defined]
+            self._rotations = _Algebra.of(group.rotation_group)  # type: ignore[attr-defined]
 
     def __repr__(self) -> str:
         extra = "" if self.geometry == "group" else f", geometry={self.geometry!r}"
