@@ -24,24 +24,25 @@ import numpy as np
 from manopt_lie import SE2, SE3, _kernels
 from manopt_lie.bench.report import write_json
 from manopt_lie.bench.timing import interleaved
-from manopt_lie.factors import Information, _poses, between_factor
+from manopt_lie.factors import Information, between_factor
 from manopt_lie.lie import LieGroup
 from manopt_lie.manifolds import LieGroupManifold, Power
 
-PATHS = ("native", "machine", "arrays")
+PATHS = _kernels.PATHS
 
 
 @contextmanager
 def path(name: str) -> Iterator[None]:
     """Send the kernels down one path while the block runs."""
-    saved = _kernels.USE_NATIVE, _poses.VM_EDGES, _kernels.VM_POINTS
-    _kernels.USE_NATIVE = name == "native"
-    if name == "arrays":
-        _poses.VM_EDGES = _kernels.VM_POINTS = 0
+    settings = _kernels.path_settings(name)
+    saved = {key: getattr(_kernels, key) for key in settings}
+    for key, value in settings.items():
+        setattr(_kernels, key, value)
     try:
         yield
     finally:
-        _kernels.USE_NATIVE, _poses.VM_EDGES, _kernels.VM_POINTS = saved
+        for key, value in saved.items():
+            setattr(_kernels, key, value)
 
 
 def cases(group: type[LieGroup], m: int, rng: np.random.Generator) -> dict[str, tuple[Callable[[], Any], int]]:
@@ -52,7 +53,7 @@ def cases(group: type[LieGroup], m: int, rng: np.random.Generator) -> dict[str, 
     manifold = Power(LieGroupManifold(group), m)
     step = 0.1 * rng.standard_normal((m, group.dim))
     return {
-        "between": (lambda: factor.residual(xi, xj, jac=True), _poses.VM_EDGES),
+        "between": (lambda: factor.residual(xi, xj, jac=True), _kernels.VM_EDGES),
         "retraction": (lambda: manifold.retr(xi, step), _kernels.VM_POINTS),
     }
 

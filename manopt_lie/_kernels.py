@@ -37,7 +37,8 @@ from .lie import SE2, SE3, LieGroup
 if TYPE_CHECKING:
     from ._native import Native
 
-__all__ = ["NATIVE_KINDS", "VM_EDGES", "VM_POINTS", "between_terms", "flat_rows", "native_kernel", "rplus"]
+__all__ = ["NATIVE_KINDS", "PATHS", "VM_EDGES", "VM_POINTS", "between_terms", "flat_rows", "native_kernel"]
+__all__ += ["path_settings", "rplus"]
 
 FloatArray = NDArray[np.float64]
 
@@ -172,8 +173,21 @@ def _mapped(kind: str, group: str, m: int) -> Callable[..., list[FloatArray]]:
 
 
 USE_NATIVE = True
-"""Whether native kernels are used where they can be built (the tests turn them off to check the
-virtual machine and the array kernels; ``MANOPT_LIE_NATIVE=0`` in the environment keeps them from being built)."""
+"""Whether native kernels are used where they can be built (``MANOPT_LIE_NATIVE=0`` in the
+environment keeps them from being built)."""
+
+PATHS = ("native", "machine", "arrays")
+_VM_LIMITS = (VM_EDGES, VM_POINTS)
+
+
+def path_settings(name: str) -> dict[str, Any]:
+    """The values of this module's switches that send the kernels down one of :data:`PATHS`:
+    native code where it can be built, CasADi's virtual machine up to its limits, or the array
+    kernels alone — for tests and benchmarks that check each path (set them, then restore)."""
+    if name not in PATHS:
+        raise ValueError(f"kernel path: expected one of {PATHS}, got {name!r}")
+    limits = (0, 0) if name == "arrays" else _VM_LIMITS
+    return {"USE_NATIVE": name == "native", "VM_EDGES": limits[0], "VM_POINTS": limits[1]}
 
 
 def native_kernel(group: type[LieGroup], kind: str) -> Native | None:
@@ -191,12 +205,13 @@ def flat_rows(*arrays: FloatArray) -> list[FloatArray]:
 
 def between_terms(
     group: type[LieGroup], mi: FloatArray, mj: FloatArray, z_inv: FloatArray, jac: bool
-) -> list[FloatArray]:
-    """``[Log E]`` (``(m, k)``), with ``jac`` also ``Jr⁻¹(Log E)`` and ``Ad_{Y⁻¹}`` (``(m, k, k)``), of the
-    edges ``Y = X_i⁻¹ X_j``, ``E = Z⁻¹ Y`` given as homogeneous matrices ``(m, s, s)``."""
+) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+    """``Log E`` (``(m, k)``) and, with ``jac``, ``Jr⁻¹(Log E)`` and ``Ad_{Y⁻¹}`` (``(m, k, k)``; else
+    ``None``) of the edges ``Y = X_i⁻¹ X_j``, ``E = Z⁻¹ Y`` given as homogeneous matrices
+    ``(m, s, s)``, on the virtual machine."""
     m, k = len(mi), group.dim
     out = _mapped("terms" if jac else "log", group.__name__, m)(*flat_rows(mi, mj, z_inv))
-    return [out[0]] if not jac else [out[0], out[1].reshape(m, k, k), out[2].reshape(m, k, k)]
+    return (out[0], None, None) if not jac else (out[0], out[1].reshape(m, k, k), out[2].reshape(m, k, k))
 
 
 def rplus(group: type[LieGroup], x: FloatArray, tau: FloatArray) -> FloatArray | None:

@@ -7,15 +7,11 @@ from __future__ import annotations
 import pytest
 
 from manopt_lie import _kernels
-from manopt_lie.factors import _poses
 
-PATHS = ("native", "machine", "arrays")
+PATHS = _kernels.PATHS
 
 
 def use(path: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """Send the kernels down ``path`` for the rest of the test."""
-    assert path in PATHS
-    monkeypatch.setattr(_kernels, "USE_NATIVE", path == "native")
-    if path == "arrays":
-        monkeypatch.setattr(_poses, "VM_EDGES", 0)
-        monkeypatch.setattr(_kernels, "VM_POINTS", 0)
+    for name, value in _kernels.path_settings(path).items():
+        monkeypatch.setattr(_kernels, name, value)

@@ -153,3 +153,10 @@ def test_no_home_directory_builds_in_a_private_directory(monkeypatch):
         return
     native = _native.compile_functions([_function("homeless")])["homeless"]
     np.testing.assert_allclose(_run(native, np.zeros((1, 3)), np.ones((1, 2)))[0], 1.0)
+
+
+def test_kernel_paths_by_name():
+    assert _kernels.path_settings("arrays") == {"USE_NATIVE": False, "VM_EDGES": 0, "VM_POINTS": 0}
+    assert _kernels.path_settings("native")["USE_NATIVE"] is True
+    with pytest.raises(ValueError, match="kernel path"):
+        _kernels.path_settings("gpu")

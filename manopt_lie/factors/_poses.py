@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._kernels import VM_EDGES, between_terms, flat_rows, native_kernel
+from .. import _kernels
+from .._kernels import flat_rows
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 
 __all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
@@ -85,69 +86,50 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
             return r @ L.T
         return np.matmul(L[a:b], r[:, :, None])[:, :, 0]
 
-    def one_pass(mi: FloatArray, mj: FloatArray, a: int, b: int, r_out: FloatArray, j_out: FloatArray | None) -> None:
-        """Edges ``a:b``: ``r_out[a:b]`` and, unless ``j_out`` is None, ``j_out[a:b]``."""
-        y = np.matmul(_inverse(mi[a:b], d), mj[a:b])
-        r = kernels.log(np.matmul(z_inv[a:b], y))
-        r_out[a:b] = whiten(r, a, b)
-        if j_out is None:
+    def write(
+        tau: FloatArray, jr_inv: FloatArray | None, adjoint_y_inv: FloatArray | None, a: int, b: int,
+        r_out: FloatArray, j_out: FloatArray | None,
+    ) -> None:  # fmt: skip
+        """Edges ``a:b`` from ``Log E`` (and ``Jr⁻¹``, ``Ad_{Y⁻¹}``, consumed): ``r_out[a:b]`` and,
+        unless ``j_out`` is None, ``j_out[a:b]``."""
+        r_out[a:b] = whiten(tau, a, b)
+        if j_out is None or jr_inv is None or adjoint_y_inv is None:
             return
         j_i, j_j = j_out[a:b, :, :k], j_out[a:b, :, k:]
-        jr_inv = kernels.jr_inv(r)
         if L is None:
             j_j[...] = jr_inv
         else:
             np.matmul(L[a:b] if per_edge else L, jr_inv, out=j_j)
-        minus_adjoint = kernels.adjoint(_inverse(y, d))
-        np.negative(minus_adjoint, out=minus_adjoint)  # contiguous: ~10× faster than negating the view j_i
-        np.matmul(j_j, minus_adjoint, out=j_i)
-
-    def small(mi: FloatArray, mj: FloatArray, jac: bool) -> Any:
-        """The same on CasADi's virtual machine (:mod:`manopt_lie._kernels`), whitening and products here."""
-        terms = between_terms(group, mi, mj, z_inv, jac)
-        r = whiten(terms[0], 0, len(mi))
-        if not jac:
-            return r
-        _, jr_inv, adjoint_y_inv = terms
-        j_out = np.empty((len(mi), k, 2 * k))
-        j_i, j_j = j_out[:, :, :k], j_out[:, :, k:]
-        if L is None:
-            j_j[...] = jr_inv
-        else:
-            np.matmul(L, jr_inv, out=j_j)
-        np.negative(adjoint_y_inv, out=adjoint_y_inv)
+        np.negative(adjoint_y_inv, out=adjoint_y_inv)  # contiguous: ~10× faster than negating the view j_i
         np.matmul(j_j, adjoint_y_inv, out=j_i)
-        return r, [j_i, j_j]
+
+    def one_pass(mi: FloatArray, mj: FloatArray, a: int, b: int, r_out: FloatArray, j_out: FloatArray | None) -> None:
+        """Edges ``a:b`` through the array kernels."""
+        y = np.matmul(_inverse(mi[a:b], d), mj[a:b])
+        r = kernels.log(np.matmul(z_inv[a:b], y))
+        if j_out is None:
+            write(r, None, None, a, b, r_out, None)
+        else:
+            write(r, kernels.jr_inv(r), kernels.adjoint(_inverse(y, d)), a, b, r_out, j_out)
 
     z_flat = flat_rows(z_inv)
     l_flat = [] if L is None else flat_rows(L) if per_edge else [np.ascontiguousarray(L).ravel()]
-
-    def compiled(mi: FloatArray, mj: FloatArray, jac: bool) -> Any:
-        """The whole kernel in native code (:func:`manopt_lie._kernels.native_kernel`), or ``None``."""
-        kind = ("whitened " if L is not None else "") + ("between" if jac else "log")
-        kernel = native_kernel(group, kind)
-        if kernel is None:
-            return None
-        m = len(mi)
-        r_out = np.empty((m, k))
-        j_out = np.empty((m, k, 2 * k)) if jac else None
-        kernel(m, [*flat_rows(mi, mj), *z_flat, *l_flat], [r_out] if j_out is None else [r_out, j_out.reshape(m, -1)])
-        return r_out if j_out is None else (r_out, [j_out[:, :, :k], j_out[:, :, k:]])
+    kinds = [("whitened " if L is not None else "") + kind for kind in ("log", "between")]  # [jac]
 
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:
         mi, mj = xi.as_matrix(), xj.as_matrix()
         m = len(mi)
-        out = compiled(mi, mj, jac)
-        if out is not None:
-            return out
-        if m <= VM_EDGES:
-            return small(mi, mj, jac)
         r_out = np.empty((m, k))
         j_out = np.empty((m, k, 2 * k)) if jac else None
-        for a in range(0, m, EDGE_CHUNK):  # a few chunks: their temporaries are reused, not paged in anew
-            one_pass(mi, mj, a, min(a + EDGE_CHUNK, m), r_out, j_out)
-        if j_out is None:
-            return r_out
-        return r_out, [j_out[:, :, :k], j_out[:, :, k:]]
+        native = _kernels.native_kernel(group, kinds[jac])
+        if native is not None:  # the whole kernel in native code
+            outs = [r_out] if j_out is None else [r_out, j_out.reshape(m, -1)]
+            native(m, [*flat_rows(mi, mj), *z_flat, *l_flat], outs)
+        elif m <= _kernels.VM_EDGES:  # Log, Jr⁻¹ and Ad on CasADi's virtual machine, the products here
+            write(*_kernels.between_terms(group, mi, mj, z_inv, jac), 0, m, r_out, j_out)
+        else:
+            for a in range(0, m, EDGE_CHUNK):  # a few chunks: their temporaries are reused, not paged in anew
+                one_pass(mi, mj, a, min(a + EDGE_CHUNK, m), r_out, j_out)
+        return r_out if j_out is None else (r_out, [j_out[:, :, :k], j_out[:, :, k:]])
 
     return residual

@@ -134,10 +134,9 @@ class LieGroupManifold(Manifold):
         if self.geometry == "group":
             if type(x) in (SE2, SE3) and len(x.batch_shape) == 1 and len(x) > 1:
                 t = x._tangent(v)
-                if t.shape == (len(x), x.dim) and np.abs(t).max() < HUGE:  # huge angles: the scale-safe kernels
-                    y = rplus(type(x), x.as_matrix(), t)  # compiled, or a small batch on CasADi's virtual machine
-                    if y is not None:
-                        return x._wrap(y)
+                # Compiled, or a small batch on CasADi's virtual machine; huge angles: the scale-safe kernels.
+                y = rplus(type(x), x.as_matrix(), t) if t.shape == (len(x), x.dim) and np.abs(t).max() < HUGE else None
+                return x.rplus(t) if y is None else x._wrap(y)
             return x.rplus(v)
         r, t = x.rotation(), x.translation()  # type: ignore[attr-defined]
         d = self.group.point_dim

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from manopt_lie import SE2, SE3, SE23, SO2, SO3, Rn, Sim3
+from manopt_lie import SE2, SE3, SE23, SO2, SO3, Rn, Sim3, _kernels
 from manopt_lie.factors import Diagonal, Information, Isotropic, _poses, between_factor, prior_factor, rotation_factor
 from manopt_lie.lie import LieGroup
 from manopt_lie.optim.losses import Huber
@@ -91,7 +91,7 @@ def _exact(group: type[LieGroup], angle: float, m: int) -> LieGroup:
 
 @pytest.mark.parametrize("group", [SE2, SE3], ids=lambda g: g.__name__)
 @pytest.mark.parametrize("regime", [*REGIMES, "identity", "pi"])
-@pytest.mark.parametrize("m", [1, M, _poses.VM_EDGES])
+@pytest.mark.parametrize("m", [1, M, _kernels.VM_EDGES])
 def test_native_code_and_the_virtual_machine_agree_with_the_array_kernel(rng, group, regime, m, monkeypatch):
     """Residuals and both slots' Jacobians in native code and (up to ``VM_EDGES`` edges) on
     CasADi's virtual machine agree with the array kernel to round-off, at the identity and at π
