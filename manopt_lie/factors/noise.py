@@ -134,6 +134,14 @@ class NoiseModel:
         raise NotImplementedError
 
     @property
+    def common_sqrt_information(self) -> FloatArray | None:
+        """The one ``R`` (``(k, k)``) that whitens every edge — a shared model's, or the matrix that
+        every edge of a per-edge model repeats — else ``None``. A kernel given it whitens all
+        edges by one product instead of one per edge."""
+        r = self.sqrt_information
+        return r if r.ndim == 2 else None
+
+    @property
     def information(self) -> FloatArray:
         """``Ω = RᵀR``: ``(k, k)`` if shared, else ``(m, k, k)``."""
         r = self.sqrt_information
@@ -179,7 +187,7 @@ class Gaussian(NoiseModel):
     given (``(k, k)`` or ``(m, k, k)``, assumed invertible).
     """
 
-    __slots__ = ("_r",)
+    __slots__ = ("_one", "_r")
 
     def __init__(self, sqrt_information: ArrayLike) -> None:
         r = _array(sqrt_information, type(self).__name__)
@@ -188,16 +196,22 @@ class Gaussian(NoiseModel):
         _finite(r, type(self).__name__, r.ndim == 2, (-2, -1) if r.ndim == 3 else ())
         r.flags.writeable = False
         self._r = r
+        # Per-edge matrices that are all one (synthetic graphs, smallGrid3D): that one, kept for the products.
+        self._one = r if r.ndim == 2 else r[0] if len(r) and (r == r[0]).all() else None
         self.dim = r.shape[-1]
         self.edges = r.shape[0] if r.ndim == 3 else None
 
     def whiten(self, r: FloatArray) -> FloatArray:
-        if self._r.ndim == 2:
-            return r @ self._r.T
+        if self._one is not None:
+            return r @ self._one.T
         return np.einsum("eij,ej->ei", self._r, r)
 
     def whiten_jacobian(self, j: FloatArray) -> FloatArray:
-        return self._r @ j
+        return (self._r if self._one is None else self._one) @ j
+
+    @property
+    def common_sqrt_information(self) -> FloatArray | None:
+        return self._one
 
     @property
     def sqrt_information(self) -> FloatArray:

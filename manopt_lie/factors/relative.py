@@ -77,11 +77,9 @@ def between_factor(
     if group in FUSED_GROUPS:  # SE(2), SE(3): one fused pass, whitening included (``_poses``)
         model = as_noise_model(noise, len(v), group.dim, name)
         sqrt_info = None
-        if not isinstance(model, Unit):
-            sqrt_info = model.sqrt_information
-            if sqrt_info.ndim == 3 and (sqrt_info == sqrt_info[0]).all():
-                sqrt_info = sqrt_info[0]  # one matrix for every edge (synthetic graphs): kept once, one product
-            sqrt_info = np.ascontiguousarray(sqrt_info)
+        if not isinstance(model, Unit):  # one matrix for every edge where there is one: one product
+            common = model.common_sqrt_information
+            sqrt_info = np.ascontiguousarray(model.sqrt_information if common is None else common)
         fused = between_kernel(group, np.ascontiguousarray(z_inv.as_matrix()), sqrt_info)
 
         def residual(xi: Any, xj: Any, jac: bool = False) -> Any:

@@ -57,6 +57,24 @@ def test_whitening_is_the_mahalanobis_norm(rng):
         np.testing.assert_allclose(np.swapaxes(r_sqrt, -1, -2) @ r_sqrt, model.information, rtol=1e-12, atol=1e-14)
 
 
+def test_one_matrix_repeated_per_edge_is_the_common_square_root(rng):
+    """A per-edge model whose matrices are all one whitens as the shared model does, through
+    that one matrix (``common_sqrt_information``); one different edge keeps them per edge."""
+    omega = spd(rng, 1, 4)[0]
+    r, j = rng.standard_normal((6, 4)), rng.standard_normal((6, 4, 3))
+    shared, repeated = Information(omega), Information(np.repeat(omega[None], 6, axis=0))
+    np.testing.assert_array_equal(repeated.common_sqrt_information, shared.sqrt_information)
+    assert repeated.edges == 6 and repeated.sqrt_information.shape == (6, 4, 4)  # still a per-edge model
+    np.testing.assert_allclose(repeated.whiten(r), shared.whiten(r), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(repeated.whiten_jacobian(j), shared.whiten_jacobian(j), rtol=0, atol=1e-14)
+    varied = np.repeat(omega[None], 6, axis=0)
+    varied[2] *= 2.0
+    per_edge = Information(varied)
+    assert per_edge.common_sqrt_information is None
+    np.testing.assert_allclose(per_edge.squared_mahalanobis(r), np.einsum("ei,eij,ej->e", r, varied, r), rtol=1e-12)
+    assert Unit(3).common_sqrt_information is not None and Diagonal(np.ones((6, 3))).common_sqrt_information is None
+
+
 def test_information_of_the_inverse_is_the_covariance(rng):
     """``Information(Σ⁻¹) ≡ Covariance(Σ)``: same cost, gradient ``JᵀΩr`` and ``JᵀΩJ`` (the whitened
     residuals differ by an orthogonal factor: ``Lᵀ`` and ``C⁻¹`` are two square roots of ``Ω``)."""
