@@ -72,6 +72,10 @@ class Native:
     def __init__(self, driver: Any, sizes_in: Sequence[int], sizes_out: Sequence[int]) -> None:
         self._driver = driver
         self._sizes_in, self._sizes_out = tuple(sizes_in), tuple(sizes_out)
+        # The pointer and stride arrays' types, and the results' strides, made once (read-only in C).
+        self._pointers_in, self._pointers_out = ctypes.c_void_p * len(sizes_in), ctypes.c_void_p * len(sizes_out)
+        self._strides_in = ctypes.c_longlong * len(sizes_in)
+        self._strides_out = (ctypes.c_longlong * len(sizes_out))(*sizes_out)
 
     def __call__(self, m: int, args: Sequence[FloatArray], outs: Sequence[FloatArray]) -> None:
         strides = []
@@ -83,14 +87,10 @@ class Native:
         for o, size in zip(outs, self._sizes_out, strict=True):
             if o.dtype != np.float64 or not o.flags.c_contiguous or o.shape != (m, size):
                 raise ValueError(f"native kernel: a result of shape {o.shape} ({o.dtype}) is not ({m}, {size})")
-        n_in, n_out = len(args), len(outs)
         status = self._driver(
-            ctypes.c_longlong(m),
-            (ctypes.c_void_p * n_in)(*(a.ctypes.data for a in args)),
-            (ctypes.c_longlong * n_in)(*strides),
-            (ctypes.c_void_p * n_out)(*(o.ctypes.data for o in outs)),
-            (ctypes.c_longlong * n_out)(*self._sizes_out),
-        )
+            ctypes.c_longlong(m), self._pointers_in(*[a.ctypes.data for a in args]), self._strides_in(*strides),
+            self._pointers_out(*[o.ctypes.data for o in outs]), self._strides_out,
+        )  # fmt: skip
         if status:
             raise RuntimeError(f"native kernel: the compiled function failed on an element (status {status})")
 

@@ -185,6 +185,10 @@ class LieGroup:
 
     def __getitem__(self: G, index: Any) -> G:
         """Index the batch axes only, as NumPy would index an array of that shape."""
+        if type(index) is np.ndarray and index.dtype.kind in "iu" and self._data.ndim > len(self.storage_shape):
+            # An integer array indexes the first batch axis alone (a factor's gather of its
+            # variables): no probe for indices past the batch axes.
+            return self._wrap(self._data[index])
         idx = index if isinstance(index, tuple) else (index,)
         np.broadcast_to(np.empty(()), self.batch_shape)[idx]  # IndexError past the batch axes
         tail = (slice(None),) * len(self.storage_shape) if any(i is Ellipsis for i in idx) else (Ellipsis,)

