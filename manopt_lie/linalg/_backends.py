@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack
 
 from ._memory import TRIM_ENTRIES, release_freed_memory
-from ._triangles import check_diagonal, columns, coordinate_major_triangle, triangle
+from ._triangles import check_diagonal, columns, coordinate_major_triangle, triangle, values_view
 from .errors import SingularSystemError
 
 __all__ = ["BACKENDS", "DENSE_MAX", "Backend", "available_backends", "surrogate_values"]
@@ -227,6 +227,7 @@ class _CHOLMOD:
         self._cvxopt, self._cholmod = cvxopt, cholmod
         # ``coords``: the coordinate of H at each row of CHOLMOD's matrix (None: H's own order).
         self._coords: NDArray[np.intp] | None = None
+        self._supernodal = supernodal is True  # forced LLᵀ: a factor without pivots to read
         self.uplo = "U" if supernodal else "L"
         """The triangle of ``H`` that CHOLMOD reads: ``"L"`` or ``"U"`` (forced supernodes)."""
         upper = self.uplo == "U"
@@ -240,6 +241,7 @@ class _CHOLMOD:
                 ordering = position[ordering]
         else:
             self._A, self._gather = triangle(cvxopt, indptr, indices, upper=upper)
+        self._values = values_view(cvxopt, self._A, self._gather.size)  # where new values are written
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         with _CHOLMOD_OPTIONS_LOCK:
@@ -263,11 +265,17 @@ class _CHOLMOD:
             release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
 
     def factorize(self, data: FloatArray) -> None:
-        self._A.V = self._cvxopt.matrix(np.take(np.asarray(data, dtype=np.float64), self._gather))
+        data = np.asarray(data, dtype=np.float64)
+        if self._values is not None:  # mode="clip": unbuffered (the positions are H's by construction)
+            np.take(data, self._gather, out=self._values, mode="clip")
+        else:
+            self._A.V = self._cvxopt.matrix(np.take(data, self._gather))
         try:
             self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:
             raise SingularSystemError(f"CHOLMOD factorization failed: not positive definite ({err})") from None
+        if self._supernodal:  # LLᵀ: positive pivots, or numeric failed above
+            return
         # D⁻¹·1 (1 for LLᵀ, whose D = I): positive and finite iff every pivot of LDLᵀ is.
         inverse_pivots = self._cvxopt.matrix(1.0, (self._A.size[0], 1))
         self._cholmod.solve(self._factor, inverse_pivots, sys=6)

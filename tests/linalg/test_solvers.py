@@ -207,6 +207,45 @@ def test_cholmod_builds_its_lower_triangle_in_pieces(rng, monkeypatch, chunk):
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_the_values_of_cholmods_triangle_are_written_in_place(rng, monkeypatch):
+    """A factorization writes ``H``'s values into CVXOPT's own copy of the triangle through a view
+    (no CVXOPT matrix per factorization): what CVXOPT reads back is the gathered triangle, on
+    every factorization. Where the layout check fails (here, pretended), the values go through
+    CVXOPT's ``V`` and the solutions agree."""
+    import cvxopt
+
+    S, blocks, residuals = pose_graph(rng, n_poses=30, d=6)
+    H, g = S.normal_equations(blocks, residuals)
+    solutions = []
+    for layout_ok in (True, False):
+        monkeypatch.setitem(_triangles._LAYOUT, "checked", layout_ok)
+        impl = _backends._CHOLMOD(H.indptr, H.indices)
+        assert (impl._values is not None) is layout_ok
+        for scale in (1.0, 2.0):
+            impl.factorize(scale * H.data)
+            np.testing.assert_array_equal(np.asarray(impl._A.V).ravel(), scale * H.data[impl._gather])
+        solutions.append(impl.solve(g))
+    np.testing.assert_array_equal(solutions[0], solutions[1])
+    monkeypatch.delitem(_triangles._LAYOUT, "checked")
+    assert _triangles._layout_checked(cvxopt)  # this CVXOPT is laid out as the view reads it
+    complex_matrix = cvxopt.spmatrix([1j], [0], [0])
+    assert _triangles.values_view(cvxopt, complex_matrix, 1) is None
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
+def test_cholmods_forced_supernodes_refuse_an_indefinite_matrix():
+    """Supernodal LLᵀ has no pivots to read: an indefinite matrix makes the factorization itself fail."""
+    n = 200
+    off = np.full(n - 1, 0.5)
+    values = np.full(n, 2.0)
+    values[n // 2] = -1.0
+    solver = CholeskySolver("cholmod", supernodal=True)
+    with pytest.raises(SingularSystemError, match="not positive definite"):
+        solver(sp.diags([off, values, off], [-1, 0, 1], format="csc"), np.ones(n))
+    assert solver._impl.pivots is None
+
+
+@pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
 @pytest.mark.parametrize("graph", ["mixed", "poses", "scalars"])
 def test_cholmod_of_a_structure_factors_h_in_coordinate_major_order(rng, monkeypatch, graph):
     """A solver bound to a structure hands CHOLMOD ``H`` reordered coordinate-major (coordinate
