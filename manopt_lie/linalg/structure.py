@@ -175,6 +175,7 @@ class BlockStructure:
         self._indptr = indptr.astype(itype)
         self._indices = indices
         self._diag_pos = (indptr[:-1] + within[inverse[:nv]][var_of_col] + j_local).astype(itype)
+        self._diag_pos.flags.writeable = False
         self._n = n
         parts = np.split(inverse[nv:], np.cumsum([ids.size * ids.shape[1] for ids in all_ids])[:-1])
         blocks = [p.reshape(ids.shape[1], *ids.shape) for p, ids in zip(parts, all_ids, strict=True)]
@@ -252,6 +253,12 @@ class BlockStructure:
     def indices(self) -> NDArray[np.signedinteger]:
         """The CSC row ``indices`` of ``H`` (the same array object on every call)."""
         return self._indices
+
+    @property
+    def diagonal_positions(self) -> NDArray[np.signedinteger]:
+        """Where each diagonal entry ``H[i, i]`` sits in ``H.data``, shape ``(n,)`` (read-only,
+        the same array on every call): e.g. ``H.data[positions[i]] += 1`` adds to ``H[i, i]``."""
+        return self._diag_pos
 
     @property
     def block_pattern(self) -> tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]:

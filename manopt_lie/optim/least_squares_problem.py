@@ -303,7 +303,7 @@ class LeastSquaresProblem(Problem):
     """
 
     __slots__ = (
-        "_build_lock", "_exact_hessian", "_factors", "_fixed", "_fixed_columns", "_fixed_diagonal", "_layout",
+        "_build_lock", "_exact_hessian", "_factors", "_fixed", "_fixed_columns", "_fixed_coordinates", "_layout",
         "_residual_dims", "_slots", "_structure", "_variables",
     )  # fmt: skip
 
@@ -325,8 +325,7 @@ class LeastSquaresProblem(Problem):
         # Where the fixed variables sit, found once: per factor the (edges, first column, end
         # column) of their Jacobian columns, and the 1s they get on the diagonal of H.
         self._fixed_columns = tuple(self._fixed_slots(k) for k in range(len(self._factors)))
-        self._fixed_diagonal = (np.repeat(self._fixed, self._layout.dims).astype(np.float64)
-                                if self._fixed.any() else None)  # fmt: skip
+        self._fixed_coordinates = np.flatnonzero(np.repeat(self._fixed, self._layout.dims))
         self._structure: BlockStructure | None = None
         self._residual_dims: tuple[int, ...] | None = None
         self._build_lock = threading.Lock()
@@ -395,12 +394,12 @@ class LeastSquaresProblem(Problem):
         # Plain least squares weighs every edge by 1: the assembly skips the product.
         scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
         g = structure.gradient(blocks, residuals, scaling)
-        fixed = self._fixed_diagonal
+        fixed = self._fixed_coordinates
 
         def hessian(out: scipy.sparse.csc_matrix | None = None) -> scipy.sparse.csc_matrix:
             h = structure.hessian(blocks, scaling, out=out)
-            if fixed is not None:  # H is its own (fresh or recycled): 1 on the fixed variables' diagonal, in place
-                h = structure.add_diagonal(h, fixed, inplace=True)
+            if fixed.size:  # H is its own (fresh or recycled): 1 on the fixed variables' diagonal, in place
+                h.data[structure.diagonal_positions[fixed]] += 1.0
             return h
 
         lin = Linearization(cost, g.reshape(self._layout.tangent_shape), hessian, residuals, weights, jacobians=blocks)

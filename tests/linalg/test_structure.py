@@ -107,6 +107,16 @@ def test_add_diagonal_keeps_the_pattern(graph):
         S.add_diagonal(H[:-1, :-1], 1.0)
 
 
+def test_diagonal_positions_point_at_the_diagonal(graph):
+    rng, dims, factors, S = graph
+    H, _ = S.normal_equations(*random_values(rng, dims, factors))
+    positions = S.diagonal_positions
+    np.testing.assert_array_equal(H.data[positions], H.diagonal())
+    assert positions is S.diagonal_positions and not positions.flags.writeable
+    H.data[positions[[0, S.n - 1]]] += 1.0  # as LeastSquaresProblem marks its fixed variables
+    np.testing.assert_array_equal(H.diagonal()[[0, S.n - 1]], H.data[positions[[0, S.n - 1]]])
+
+
 def test_single_factor_without_diagonal_only_variables():
     # A variable no edge touches still gets its (zero) diagonal block, ready for damping.
     S = BlockStructure([2, 2, 2], [(np.array([[0, 1]]), 2)])

@@ -311,7 +311,8 @@ def test_a_deferred_hessian_is_the_normal_equations_and_checks_its_jacobians(mon
     assert count[0] == 0 and "not assembled" in repr(lin)
     evaluation = problem._evaluate(x0)
     h, g = problem.structure.normal_equations(evaluation[2], evaluation[1])
-    h = problem.structure.add_diagonal(h, problem._fixed_diagonal)  # the gauge's fixed pose
+    fixed_diagonal = np.repeat(problem.fixed, problem.dims).astype(float)
+    h = problem.structure.add_diagonal(h, fixed_diagonal)  # 1 on the gauge's fixed pose
     np.testing.assert_allclose(lin.grad.reshape(-1), g, rtol=0, atol=1e-13 * np.abs(g).max())
     assert lin.is_finite() and count[0] == 0  # the Jacobians checked, H still deferred
     np.testing.assert_array_equal(lin.hessian.toarray(), h.toarray())
