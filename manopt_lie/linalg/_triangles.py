@@ -23,6 +23,7 @@ products (~30 ns per entry of the product), or by joining blocks (``cvxopt.spars
 from __future__ import annotations
 
 import ctypes
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -170,7 +171,6 @@ def coordinate_major_triangle(
 
 
 _POINTER = ctypes.sizeof(ctypes.c_void_p)
-_LAYOUT: dict[str, bool] = {}  # "checked": whether CVXOPT's sparse matrices are laid out as values_view reads them
 
 
 def _values_address(matrix: Any) -> int:
@@ -180,25 +180,23 @@ def _values_address(matrix: Any) -> int:
     return int(ctypes.c_void_p.from_address(ccs).value or 0) if ccs else 0
 
 
-def _layout_checked(cvxopt: Any) -> bool:
-    """Whether :func:`values_view` reads this CVXOPT's sparse matrices right: checked once, on a
-    small matrix, by writing through the view and reading back through CVXOPT's own ``V``."""
-    if "checked" not in _LAYOUT:
-        probe = cvxopt.spmatrix([1.0, 2.0, 3.0], [0, 1, 1], [0, 0, 1], (2, 2))
-        ok = type(probe).__basicsize__ == object.__basicsize__ + _POINTER
-        if ok:
-            view = _view(probe, 3)
-            ok = view is not None and view.tolist() == [1.0, 2.0, 3.0]
-            if ok and view is not None:
-                view[:] = (4.0, 5.0, 6.0)
-                ok = np.asarray(probe.V).ravel().tolist() == [4.0, 5.0, 6.0]
-        _LAYOUT["checked"] = ok
-    return _LAYOUT["checked"]
-
-
 def _view(matrix: Any, size: int) -> NDArray[np.float64] | None:
     address = _values_address(matrix)
     return np.ctypeslib.as_array((ctypes.c_double * size).from_address(address)) if address else None
+
+
+@cache
+def _layout_checked(cvxopt: Any) -> bool:
+    """Whether :func:`values_view` reads this CVXOPT's sparse matrices right: checked once, on a
+    small matrix, by writing through the view and reading back through CVXOPT's own ``V``."""
+    probe = cvxopt.spmatrix([1.0, 2.0, 3.0], [0, 1, 1], [0, 0, 1], (2, 2))
+    if type(probe).__basicsize__ != object.__basicsize__ + _POINTER:  # not a header and one pointer
+        return False
+    view = _view(probe, 3)
+    if view is None or view.tolist() != [1.0, 2.0, 3.0]:
+        return False
+    view[:] = (4.0, 5.0, 6.0)
+    return bool(np.asarray(probe.V).ravel().tolist() == [4.0, 5.0, 6.0])
 
 
 def values_view(cvxopt: Any, matrix: Any, size: int) -> NDArray[np.float64] | None:
@@ -207,9 +205,9 @@ def values_view(cvxopt: Any, matrix: Any, size: int) -> NDArray[np.float64] | No
 
     CVXOPT hands its values out only as copies (``matrix.V``) and takes new ones only as a
     CVXOPT matrix, which costs two copies of every value per factorization (parking-garage:
-    0.85 ms of a 6.2 ms factorization; a 10⁴-pose cube 2 × 5 MB at the factorization's peak);
-    through the view, new values are written in place. The view does not keep ``matrix``
-    alive: its owner must hold both, and never resize the matrix.
+    0.85 ms of a 6.2 ms factorization); through the view, new values are written in place.
+    The view does not keep ``matrix`` alive: its owner must hold both, and never resize the
+    matrix.
     """
     if matrix.typecode != "d" or not _layout_checked(cvxopt):
         return None

@@ -241,7 +241,8 @@ class CholeskySolver:
         assert self._impl is not None
         self._H = None
         self._impl.factorize(np.asarray(H.data, dtype=np.float64))
-        checked = getattr(self._impl, "matrix", H)  # the dense backend's H: the same matrix, a faster product
+        dense = getattr(self._impl, "matrix", None)  # the dense backend's H: the same matrix, a faster product
+        checked = H if dense is None else dense
         self._check(checked, self._probe, self._impl.solve(self._probe), "the probe solve H⁻¹z after factorization")
         self._H = checked
 

@@ -6,7 +6,7 @@ from functools import partial
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from manopt_lie import SE3
@@ -30,6 +30,13 @@ seeds = st.integers(0, 2**32 - 1)
 battery = pytest.mark.parametrize("group", GROUPS, ids=group_id)
 shapes = pytest.mark.parametrize("batch", BATCH_SHAPES, ids=str)
 grouped_regimes = pytest.mark.parametrize("group,regime", cases())
+
+
+def clear_of_pi(group: type, tau: np.ndarray, gap: float) -> bool:
+    """Whether every rotation angle of ``tau`` is farther than ``gap`` from the odd multiples of
+    π, where ``Exp`` of a vector crosses the cut locus of ``Log``."""
+    u = np.mod(rotation_angle(group, tau) - np.pi, 2 * np.pi)
+    return bool(np.all(np.minimum(u, 2 * np.pi - u) > gap))
 
 
 def fd_step(regime: str) -> float:
@@ -147,15 +154,20 @@ def test_jacobians_of_elements_vs_finite_differences(group, batch, regime, seed)
 @given(seed=seeds)
 def test_jacobians_of_tangents_vs_finite_differences(group, batch, regime, seed):
     """log, rminus (right), lminus (right and left). Log is discontinuous at angle π,
-    so the near-π regime keeps a gap of 1e-4 > the finite-difference step."""
+    so the near-π regime keeps a gap of 1e-4 > the finite-difference step, and a draw of
+    another regime whose angle (of ``X`` or of ``τ``, modulo 2π) lies within ten steps of π
+    is not compared: central differences across the jump measure the jump, not ``J``
+    (Sim(3), large scale, step 1e-4: an angle 7e-5 short of π)."""
     rng = np.random.default_rng(seed)
-    fd = partial(numerical_jacobian, h=fd_step(regime))
+    h = fd_step(regime)
+    fd = partial(numerical_jacobian, h=h)
     x = element(group, regime, batch, rng, pi_gap=1e-4)
+    tau = tangent(group, regime, batch, rng, pi_gap=1e-4)
+    assume(clear_of_pi(group, x.log(), 10 * h) and clear_of_pi(group, tau, 10 * h))
     _, j = x.log(jac=True)
     assert_jacobian(j, fd(lambda a: a.log(), [x], 0))
 
     # Y = X ⊕ τ with τ inside the injectivity radius, so Y ⊖ X = τ is smooth.
-    tau = tangent(group, regime, batch, rng, pi_gap=1e-4)
     y = x.rplus(tau)
     _, j_y, j_x = y.rminus(x, jac=True)
     assert_jacobian(j_y, fd(lambda b, a: b.rminus(a), [y, x], 0))

@@ -218,7 +218,7 @@ def test_the_values_of_cholmods_triangle_are_written_in_place(rng, monkeypatch):
     H, g = S.normal_equations(blocks, residuals)
     solutions = []
     for layout_ok in (True, False):
-        monkeypatch.setitem(_triangles._LAYOUT, "checked", layout_ok)
+        monkeypatch.setattr(_triangles, "_layout_checked", lambda cvxopt, ok=layout_ok: ok)
         impl = _backends._CHOLMOD(H.indptr, H.indices)
         assert (impl._values is not None) is layout_ok
         for scale in (1.0, 2.0):
@@ -226,7 +226,8 @@ def test_the_values_of_cholmods_triangle_are_written_in_place(rng, monkeypatch):
             np.testing.assert_array_equal(np.asarray(impl._A.V).ravel(), scale * H.data[impl._gather])
         solutions.append(impl.solve(g))
     np.testing.assert_array_equal(solutions[0], solutions[1])
-    monkeypatch.delitem(_triangles._LAYOUT, "checked")
+    monkeypatch.undo()
+    _triangles._layout_checked.cache_clear()
     assert _triangles._layout_checked(cvxopt)  # this CVXOPT is laid out as the view reads it
     complex_matrix = cvxopt.spmatrix([1j], [0], [0])
     assert _triangles.values_view(cvxopt, complex_matrix, 1) is None
