@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from .. import _kernels
 from .._kernels import flat_rows
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
+from ..optim import SideBySide
 
 __all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
 
@@ -72,7 +73,8 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
     -------
     callable
         Whitened residuals ``(m, k)``; with ``jac=True`` also ``[J_i, J_j]``, each
-        ``(m, k, k)``: the two halves of one fresh ``(m, k, 2k)`` array.
+        ``(m, k, k)``: the two halves of one fresh ``(m, k, 2k)`` array, returned as a
+        :class:`~manopt_lie.optim.SideBySide` of it.
     """
     kernels, d = FUSED_GROUPS[group]
     k = group.dim
@@ -130,6 +132,6 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
         else:
             for a in range(0, m, EDGE_CHUNK):  # a few chunks: their temporaries are reused, not paged in anew
                 one_pass(mi, mj, a, min(a + EDGE_CHUNK, m), r_out, j_out)
-        return r_out if j_out is None else (r_out, [j_out[:, :, :k], j_out[:, :, k:]])
+        return r_out if j_out is None else (r_out, SideBySide(j_out, (k, k)))
 
     return residual

@@ -26,6 +26,12 @@ ONE_PRODUCT = 64
 """Batches from which one matrix against many (:func:`product`, :func:`rotate_vectors`) is one BLAS call."""
 
 
+COMPONENTS = 2048
+"""Batches from which :func:`rotate_vectors` writes ``R v`` out per component: below, the products
+``R ∘ v`` summed along rows in one reduction are faster (11 vectors: 5.5 against 22 µs), and their
+``(…, d, d)`` temporary is small."""
+
+
 def _unbroadcast(m: FloatArray) -> FloatArray:
     """``m`` itself, or its one matrix if its batch axes are a broadcast (zero strides, as
     ``blockwise`` passes a single element against a batch)."""
@@ -36,7 +42,8 @@ def _unbroadcast(m: FloatArray) -> FloatArray:
 
 @_one.fast(_one.rotate_vectors, 2, 1, small=0)
 def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
-    """``R v`` for ``d ≤ 3``, written out per component (faster than ``einsum``). One ``R``
+    """``R v`` for ``d ≤ 3``, written out per component in large batches (faster than ``einsum``),
+    as one row-wise reduction below :data:`COMPONENTS` elements. One ``R``
     against a batch of at least :data:`ONE_PRODUCT` vectors (a point cloud moved by one pose) is
     one BLAS product of the stacked rows, ``V Rᵀ``."""
     d = r.shape[-1]
@@ -44,6 +51,8 @@ def rotate_vectors(r: FloatArray, v: FloatArray) -> FloatArray:
     if one.ndim == 2 and v.ndim > 1 and v.size >= ONE_PRODUCT * d:
         if np.broadcast_shapes(r.shape[:-2], v.shape[:-1]) == v.shape[:-1]:  # v holds the whole batch
             return (v.reshape(-1, d) @ one.T).reshape(v.shape)
+    if max(r.size // (d * d), v.size // d) < COMPONENTS:  # two calls, not d² products and sums
+        return np.add.reduce(r * v[..., None, :], axis=-1)  # the same sums in the same order: the same bits
     return np.stack([sum(r[..., i, j] * v[..., j] for j in range(d)) for i in range(d)], axis=-1)
 
 

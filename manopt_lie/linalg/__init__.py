@@ -13,6 +13,7 @@ the least-squares optimizers take (``linear_solver="cholesky"`` or ``"pcg"``)::
     delta = -solver(structure.add_diagonal(H, lam * H.diagonal()), g)
 """
 
+from ._backends import DENSE_MAX
 from .cholesky import CholeskySolver
 from .errors import SingularSystemError
 from .linear_solver import LINEAR_SOLVERS, LinearSolver, get_linear_solver
@@ -22,6 +23,7 @@ from .structure import BlockStructure
 
 __all__ = [
     "BlockStructure",
+    "DENSE_MAX",
     "CholeskySolver",
     "PCGSolver",
     "LinearSolver",

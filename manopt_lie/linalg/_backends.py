@@ -152,18 +152,24 @@ class _QDLDL:
 
 DENSE_MAX = 128
 """Systems of at most this order are factored dense (``dense``) by a solver bound to a structure
-with the backend chosen automatically (:meth:`~manopt_lie.linalg.CholeskySolver.bind`)."""
+with the backend chosen automatically (:meth:`~manopt_lie.linalg.CholeskySolver.bind`), and a
+least-squares problem of at most this many unknowns stores its ``H`` dense
+(``BlockStructure(…, dense=True)``)."""
 
 
 class _Dense:
-    """LAPACK's Cholesky ``H = LLᵀ`` (``potrf``) of ``H`` scattered into a dense matrix."""
+    """LAPACK's Cholesky ``H = LLᵀ`` (``potrf``) of ``H`` scattered into a dense matrix (or, for a
+    pattern of every entry, a dense structure's, of its values as they are)."""
 
     def __init__(self, indptr: IndexArray, indices: IndexArray) -> None:
         n = indptr.size - 1
-        cols = columns(indptr)
-        check_diagonal(cols, indices == cols)
-        # Entry (i, j) of the column-major (Fortran) matrix LAPACK reads sits at j·n + i.
-        self._position = cols.astype(np.intp) * n + indices
+        # Entry (i, j) of the column-major (Fortran) matrix LAPACK reads sits at j·n + i: where a
+        # canonical pattern stores all n² entries, that is where they already are.
+        self._position: IndexArray | None = None
+        if indptr[-1] != n * n:
+            cols = columns(indptr)
+            check_diagonal(cols, indices == cols)
+            self._position = cols.astype(np.intp) * n + indices
         self._n = n
         self._factor: FloatArray | None = None
         self.matrix: FloatArray | None = None
@@ -172,8 +178,11 @@ class _Dense:
 
     def factorize(self, data: FloatArray) -> None:
         n = self._n
-        a = np.zeros(n * n)
-        a[self._position] = data
+        if self._position is None:
+            a = data.copy()
+        else:
+            a = np.zeros(n * n)
+            a[self._position] = data
         self.matrix = a.reshape((n, n), order="F")
         factor, info = lapack.dpotrf(self.matrix, lower=1, clean=0, overwrite_a=0)
         self._factor = factor if info == 0 else None

@@ -82,10 +82,11 @@ class BlockStructure:
     block, so its ``indptr``/``indices`` arrays are the same objects on every
     call and a symbolic factorization of ``H`` can be reused (also after
     :meth:`add_diagonal`). Several edges on the same pair of variables are
-    summed.
+    summed. A ``dense`` structure stores every entry instead: ``H.data`` is then the
+    dense matrix itself, column after column (``H.data.reshape(n, n)``, symmetric).
     """
 
-    def __init__(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]]) -> None:
+    def __init__(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False) -> None:
         d = np.asarray(dims)
         if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (d < 1).any():
             raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
@@ -94,17 +95,20 @@ class BlockStructure:
         if len(factors) == 0:
             raise ValueError("factors must hold at least one factor type")
         checked = [check_factor(k, ids, r, self.dims) for k, (ids, r) in enumerate(factors)]
-        block_ids, layout = self._build_hessian_pattern([ids for ids, _ in checked])
-        self._factors: list[FactorIndex] = []
+        self.dense = bool(dense)
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
-        self._hess_scatter: list[NDArray[np.signedinteger]] = []
-        self._grad_scatter: list[NDArray[np.signedinteger]] = []
-        for (ids, slot_dims), (_, r), blocks in zip(checked, factors, block_ids, strict=True):
-            factor, h, g = self._build_factor(ids, int(r), slot_dims, blocks, layout)
-            self._factors.append(factor)
-            self._hess_scatter.append(h)
-            self._grad_scatter.append(g)
+        self._factors = [
+            FactorIndex(ids, int(r), slot_dims) for (ids, slot_dims), (_, r) in zip(checked, factors, strict=True)
+        ]
+        if dense:
+            self._build_full_pattern()
+            self._hess_scatter, self._grad_scatter = self._dense_scatters()
+        else:
+            block_ids, layout = self._build_hessian_pattern([f.var_ids for f in self._factors])
+            scatters = [self._build_factor(f, b, layout) for f, b in zip(self._factors, block_ids, strict=True)]
+            self._hess_scatter = [h for h, _ in scatters]
+            self._grad_scatter = [g for _, g in scatters]
         # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
         self._chunks = [max(1, CHUNK // f.width**2) for f in self._factors]
         # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
@@ -181,14 +185,43 @@ class BlockStructure:
         blocks = [p.reshape(ids.shape[1], *ids.shape) for p, ids in zip(parts, all_ids, strict=True)]
         return blocks, (col_len, base, within)
 
+    def _build_full_pattern(self) -> None:
+        """:meth:`_build_hessian_pattern` for a ``dense`` structure: every entry stored, ``(i, j)``
+        at ``j·n + i`` of ``H.data``; the variables' graph complete. For small systems, where the
+        bookkeeping of a sparse pattern costs more than the entries it leaves out
+        (:data:`~manopt_lie.linalg.DENSE_MAX`)."""
+        nv, n = self.dims.size, int(self.offsets[-1])
+        itype = index_dtype(n * n)
+        self._block_pattern = (np.arange(nv + 1, dtype=itype) * nv, np.tile(np.arange(nv, dtype=itype), nv))
+        self._ordering = None
+        self._digest = None
+        self._indptr = np.arange(n + 1, dtype=itype) * n
+        self._indices = np.tile(np.arange(n, dtype=itype), n)
+        self._diag_pos = np.arange(n, dtype=itype) * (n + 1)
+        self._diag_pos.flags.writeable = False
+        self._n = n
+
+    def _dense_scatters(self) -> tuple[list[NDArray[np.signedinteger]], list[NDArray[np.signedinteger]]]:
+        """A dense structure's H and g scatters: entry ``[p, q]`` of ``A_eᵀA_e`` at ``c_p·n + c_q``,
+        ``c`` the coordinates of ``A_e``'s columns."""
+        itype = index_dtype(self._n * self._n)
+        columns = [self._coordinates(f).astype(itype) for f in self._factors]
+        hessian = [(c[:, :, None] * self._n + c[:, None, :]).reshape(-1) for c in columns]
+        return hessian, [c.reshape(-1) for c in columns]
+
+    def _coordinates(self, f: FactorIndex) -> IntArray:
+        """``(m, width)``: the coordinate of every column of each edge's block ``A_e``."""
+        slots = [self.offsets[f.var_ids[:, s], None] + np.arange(ds) for s, ds in enumerate(f.slot_dims)]
+        return np.concatenate(slots, 1)
+
     def _build_factor(
-        self, ids: IntArray, r: int, slot_dims: tuple[int, ...], block: IntArray, layout: _Layout
-    ) -> tuple[FactorIndex, NDArray[np.signedinteger], NDArray[np.signedinteger]]:
+        self, f: FactorIndex, block: IntArray, layout: _Layout
+    ) -> tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]:
         """Index arrays of one factor type: its H and g scatters."""
-        m, width = ids.shape[0], sum(slot_dims)
+        ids, slot_dims, m, width = f.var_ids, f.slot_dims, f.m, f.width
         itype = index_dtype(max(self.nnz, self._n))
         starts = np.cumsum((0, *slot_dims))
-        colmap = np.concatenate([self.offsets[ids[:, s], None] + np.arange(ds) for s, ds in enumerate(slot_dims)], 1)
+        colmap = self._coordinates(f)
         # A_eᵀA_e is symmetric, so its entry [p, q] may go to H[q, p]: consecutive
         # q then land on consecutive rows of one CSC column, which makes the
         # scatter far more cache-friendly than walking along a row.
@@ -203,7 +236,7 @@ class BlockStructure:
             column = col_len[b, None] * np.arange(dt, dtype=itype) + base[b, None]  # (m, dt)
             offset = np.repeat(within[block[t]], slot_dims, axis=1) + local  # (m, width)
             np.add(column[:, :, None], offset[:, None, :], out=hess[:, starts[t] : starts[t + 1], :])
-        return FactorIndex(ids, r, slot_dims), hess.reshape(-1), colmap.astype(itype).reshape(-1)
+        return hess.reshape(-1), colmap.astype(itype).reshape(-1)
 
     def _jacobian_pattern(self) -> _JacobianPattern:
         """CSR pattern of ``J`` — every row of edge ``e`` holds ``e``'s columns, sorted — and
@@ -213,9 +246,7 @@ class BlockStructure:
         cols, gathers = [], []
         for f in self._factors:
             m, r, width = f.m, f.residual_dim, f.width
-            colmap = np.concatenate(
-                [self.offsets[f.var_ids[:, s], None] + np.arange(ds) for s, ds in enumerate(f.slot_dims)], 1
-            )
+            colmap = self._coordinates(f)
             order = np.argsort(colmap, axis=1, kind="stable")
             jac = (np.arange(m) * (r * width))[:, None, None] + (np.arange(r) * width)[:, None] + order[:, None, :]
             gathers.append(jac.ravel())
@@ -521,7 +552,7 @@ class BlockStructure:
         self._check_pattern(H, "shifted_diagonal")
         pos = self._diag_pos
         saved = H.data[pos]  # fancy indexing: a copy
-        H.data[pos] = saved + np.broadcast_to(np.asarray(values, dtype=np.float64), (self._n,))
+        H.data[pos] = saved + np.asarray(values, dtype=np.float64)  # a scalar or (n,) (else the assignment raises)
         try:
             yield H
         finally:

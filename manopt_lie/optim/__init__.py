@@ -8,7 +8,7 @@ from .conjugate_gradient import ConjugateGradient
 from .dogleg import Dogleg
 from .gradient_descent import GradientDescent
 from .lbfgs import LBFGS
-from .least_squares_problem import Factor, LeastSquaresProblem, Linearization
+from .least_squares_problem import Factor, LeastSquaresProblem, Linearization, SideBySide
 from .line_search import Backtracking, LineSearch, LineSearchResult, StrongWolfe
 from .marginals import MarginalCovariances, gtsam_tangent_order, marginal_covariances, to_gtsam_order, to_left_frame
 from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt, NonlinearLeastSquares
@@ -24,6 +24,7 @@ __all__ = [
     "LeastSquaresProblem",
     "Factor",
     "Linearization",
+    "SideBySide",
     "Optimizer",
     "StoppingCriteria",
     "GradientDescent",

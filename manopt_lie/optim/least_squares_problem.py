@@ -18,6 +18,7 @@ gradient ``Σ w Jᵀr`` and the Gauss-Newton Hessian ``Σ w JᵀJ`` with IRLS we
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 import threading
 from collections.abc import Callable, Mapping, Sequence
@@ -29,7 +30,7 @@ import scipy.sparse
 from numpy.typing import NDArray
 
 from ..errors import NonFiniteError, ShapeError
-from ..linalg import BlockStructure
+from ..linalg import DENSE_MAX, BlockStructure
 from ..manifolds import Blocks, Power
 from ._values import check_result, same_point, snapshot
 from .losses import RobustLoss, Trivial, parse_loss
@@ -67,10 +68,9 @@ class Factor:
         ``("poses", "landmarks")``; a single name applies to every slot. Ignored on ``Power``.
     fresh_jacobians : bool
         The residual returns new Jacobian arrays at every call, which the problem may
-        overwrite (zeroing the columns of fixed variables in place). Jacobians that are
-        the consecutive slices ``J[:, :, o_s:o_s + d_s]`` of one ``(m, k, Σd)`` array, in
-        slot order, are then read as that array without concatenating them (the
-        library's fused pose factors return them so).
+        overwrite (zeroing the columns of fixed variables in place). Jacobians returned as
+        a :class:`SideBySide` (slices of one array) are then read as that array without
+        concatenating them (the library's fused pose factors return them so).
     """
 
     variables: NDArray[np.int64]
@@ -177,21 +177,25 @@ def _recycled(out: Any = None) -> scipy.sparse.csc_matrix:
     raise RuntimeError("this linearization's H was recycled by a later one (Linearization.recycle)")
 
 
-def _side_by_side(jacobians: Sequence[Any]) -> FloatArray | None:
-    """The array ``J`` whose consecutive last-axis slices, in order, are ``jacobians``, or ``None``."""
-    first = jacobians[0]
-    base = getattr(first, "base", None)
-    if not isinstance(base, np.ndarray) or base.ndim != 3 or base.dtype != np.float64:
-        return None
-    if base.shape[:2] != first.shape[:2] or base.shape[2] != sum(j.shape[-1] for j in jacobians):
-        return None
-    start, step = base.__array_interface__["data"][0], base.strides[2]
-    offset = 0
-    for j in jacobians:
-        if j.base is not base or j.strides != base.strides or j.__array_interface__["data"][0] != start + offset * step:
-            return None
-        offset += j.shape[-1]
-    return base
+class SideBySide(list):  # type: ignore[type-arg]
+    """The Jacobians of a factor's slots, in slot order, declared to be the consecutive
+    last-axis slices of one ``(m, k, Σd)`` array, :attr:`block` (the library's fused pose
+    factors return them so): a :class:`LeastSquaresProblem` then reads ``block`` whole instead of
+    concatenating the slices. A plain list to everyone else."""
+
+    __slots__ = ("block",)
+
+    def __init__(self, block: FloatArray, widths: Sequence[int]) -> None:
+        starts = list(itertools.accumulate(widths, initial=0))
+        if block.ndim != 3 or block.shape[2] != starts[-1]:
+            raise ShapeError(f"SideBySide: a block of shape {block.shape} for slots of widths {tuple(widths)}")
+        super().__init__([block[:, :, a:b] for a, b in itertools.pairwise(starts)])
+        self.block = block
+
+
+def _read_only(a: FloatArray) -> FloatArray:
+    a.flags.writeable = False
+    return a
 
 
 class _Layout:
@@ -304,7 +308,7 @@ class LeastSquaresProblem(Problem):
 
     __slots__ = (
         "_build_lock", "_exact_hessian", "_factors", "_fixed", "_fixed_columns", "_fixed_coordinates", "_layout",
-        "_residual_dims", "_slots", "_structure", "_variables",
+        "_residual_dims", "_slots", "_structure", "_unit_weights", "_variables",
     )  # fmt: skip
 
     def __init__(
@@ -326,6 +330,7 @@ class LeastSquaresProblem(Problem):
         # column) of their Jacobian columns, and the 1s they get on the diagonal of H.
         self._fixed_columns = tuple(self._fixed_slots(k) for k in range(len(self._factors)))
         self._fixed_coordinates = np.flatnonzero(np.repeat(self._fixed, self._layout.dims))
+        self._unit_weights = tuple(_read_only(np.ones(len(v))) for v in self._variables)
         self._structure: BlockStructure | None = None
         self._residual_dims: tuple[int, ...] | None = None
         self._build_lock = threading.Lock()
@@ -362,12 +367,22 @@ class LeastSquaresProblem(Problem):
                 f"{f.name}: residual(jac={jac}) returned residuals of shape {shape}; expected (m, k) = {expected}"
             )
 
+    def _loss(self, k: int, r: FloatArray) -> tuple[float, FloatArray]:
+        """``½ Σ_e ρ(‖r_e‖²)`` of factor ``k``'s residuals and the IRLS weights ``ρ'(‖r_e‖²)``:
+        for plain least squares ``½ Σ r²`` in one product and weights 1 (an array kept once)."""
+        loss = self._factors[k].robust_loss
+        if type(loss) is Trivial:  # (einsum: one core, where BLAS's threaded ddot may stall)
+            flat = r.reshape(-1)
+            return 0.5 * float(np.einsum("i,i->", flat, flat)), self._unit_weights[k]
+        s = np.einsum("...i,...i->...", r, r)
+        return 0.5 * float(np.sum(loss.rho(s))), loss.weight(s)
+
     def _evaluate_cost(self, x: Any) -> float:
         total = 0.0
         for k, f in enumerate(self._factors):
             r = f.residual(*self._points(x, k), jac=False)
             self._check_residual(k, r, False)
-            total += 0.5 * float(np.sum(f.robust_loss.rho(np.einsum("...i,...i->...", r, r))))
+            total += self._loss(k, r)[0]
         return total
 
     def linearize(self, x: Any) -> Linearization:
@@ -452,11 +467,11 @@ class LeastSquaresProblem(Problem):
                     f"{f.name}: residual(jac=True) returned Jacobians of shapes "
                     f"{[np.shape(j) for j in jacobians]}; expected (m, k, d) = {expected}"
                 )
-            s = np.einsum("...i,...i->...", r, r)
-            cost += 0.5 * float(np.sum(f.robust_loss.rho(s)))
+            part, w = self._loss(k, r)
+            cost += part
             blocks.append(self._jacobian_block(k, jacobians))
             residuals.append(r)
-            weights.append(f.robust_loss.weight(s))
+            weights.append(w)
         return cost, residuals, blocks, weights
 
     def _fixed_slots(self, k: int) -> list[tuple[NDArray[np.intp], int, int]]:
@@ -473,8 +488,9 @@ class LeastSquaresProblem(Problem):
         """Factor ``k``'s Jacobians side by side, ``(m, r, Σd)``, with zero columns for the
         fixed variables (so their update is exactly zero): the factor's own array when its
         fresh Jacobians are slices of one, else a concatenation."""
-        block = _side_by_side(jacobians) if self._factors[k].fresh_jacobians else None
-        if block is None:
+        if self._factors[k].fresh_jacobians and type(jacobians) is SideBySide:
+            block = jacobians.block
+        else:
             block = np.concatenate(jacobians, axis=-1)
         for edges, start, stop in self._fixed_columns[k]:
             block[edges, :, start:stop] = 0.0
@@ -486,7 +502,8 @@ class LeastSquaresProblem(Problem):
         with self._build_lock:
             if self._structure is None:
                 shapes = [(v, r.shape[-1]) for v, r in zip(self._variables, residuals, strict=True)]
-                structure = BlockStructure(self._layout.dims, shapes)
+                dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
+                structure = BlockStructure(dims, shapes, dense=int(dims.sum()) <= DENSE_MAX)
                 self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
                 self._structure = structure
             return self._structure

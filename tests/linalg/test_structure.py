@@ -15,11 +15,14 @@ from .helpers import dense_jacobian, dense_normal_equations, random_factor_graph
 SEEDS = [0, 1, 2]
 
 
-@pytest.fixture(params=SEEDS)
+@pytest.fixture(params=[(seed, dense) for dense in (False, True) for seed in SEEDS], ids=str)
 def graph(request):
-    rng = np.random.default_rng(request.param)
+    """A random factor graph's structure, sparse or dense (every entry stored): everything
+    below holds for both but the pattern itself."""
+    seed, dense = request.param
+    rng = np.random.default_rng(seed)
     dims, factors = random_factor_graph(rng)
-    return rng, dims, factors, BlockStructure(dims, factors)
+    return rng, dims, factors, BlockStructure(dims, factors, dense=dense)
 
 
 def test_sizes(graph):
@@ -74,7 +77,7 @@ def test_pattern_is_the_touched_blocks_plus_the_diagonal(graph):
     ones = [np.ones_like(b) for b in random_values(rng, dims, factors)[0]]
     J = dense_jacobian(dims, factors, ones)
     var_of = np.repeat(np.arange(dims.size), dims)
-    expected = (J.T @ J != 0) | (var_of[:, None] == var_of[None, :])
+    expected = (J.T @ J != 0) | (var_of[:, None] == var_of[None, :]) | S.dense
     stored = np.zeros((S.n, S.n), dtype=bool)
     stored[S.indices, np.repeat(np.arange(S.n), np.diff(S.indptr))] = True
     np.testing.assert_array_equal(stored, expected)
@@ -115,6 +118,18 @@ def test_diagonal_positions_point_at_the_diagonal(graph):
     assert positions is S.diagonal_positions and not positions.flags.writeable
     H.data[positions[[0, S.n - 1]]] += 1.0  # as LeastSquaresProblem marks its fixed variables
     np.testing.assert_array_equal(H.diagonal()[[0, S.n - 1]], H.data[positions[[0, S.n - 1]]])
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_a_dense_structure_stores_the_dense_matrix_column_by_column(seed):
+    rng = np.random.default_rng(seed)
+    dims, factors = random_factor_graph(rng)
+    S = BlockStructure(dims, factors, dense=True)
+    H, _ = S.normal_equations(*random_values(rng, dims, factors))
+    np.testing.assert_array_equal(H.data.reshape(S.n, S.n).T, H.toarray())
+    indptr, rows = S.block_pattern  # every variable next to every other
+    assert np.array_equal(np.diff(indptr), np.full(dims.size, dims.size))
+    np.testing.assert_array_equal(rows, np.tile(np.arange(dims.size), dims.size))
 
 
 def test_single_factor_without_diagonal_only_variables():
