@@ -146,8 +146,15 @@ class LieGroup:
         ------
         NonFiniteError, NotInGroupError
         """
-        self._checked(self._data, project=False, tol=tol, name=name or type(self).__name__)
+        name = name or type(self).__name__
+        self._verify(as_batch(self._data, self.storage_shape, name), tol, name)
         return self
+
+    @classmethod
+    def _verify(cls, a: FloatArray, tol: float, name: str) -> None:
+        """Raise unless ``a`` is in the group within ``tol``: :meth:`_validated` without its polish
+        (groups whose polish is a separate step say so by overriding this)."""
+        cls._validated(a, tol, name)
 
     def as_matrix(self) -> FloatArray:
         """The matrix form, shape ``(..., k, k)`` (a read-only view where stored as such)."""
@@ -494,7 +501,8 @@ class LieGroup:
     # static: _exp(tau), _log(data), _compose(a, b), _inverse(a), _act(a, p),
     #   _act_jac(a, p) -> (J_x, J_p), _adjoint(a), _jr(tau), _jr_inv(tau), _hat(tau), _vee(m);
     # class methods: _identity(batch), _random(rng, batch), _project(a) and
-    #   _validated(a, tol, name), which checks ``a`` is in the group within ``tol`` and polishes it.
+    #   _validated(a, tol, name), which checks ``a`` is in the group within ``tol`` and polishes it
+    #   (optionally _verify(a, tol, name): the check alone, for ``validate``).
 
     _exp = _log = _compose = _inverse = _act = _act_jac = _adjoint = staticmethod(_unsupplied)
     _jr = _jr_inv = _hat = _vee = staticmethod(_unsupplied)

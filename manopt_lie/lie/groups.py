@@ -41,8 +41,12 @@ class _RotationGroup(LieGroup):
         return np.swapaxes(a, -1, -2)
 
     @classmethod
-    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+    def _verify(cls, a: FloatArray, tol: float, name: str) -> None:
         _matrix.check_rotation(a, tol, name)
+
+    @classmethod
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        cls._verify(a, tol, name)
         return _matrix.polish_rotation(a)
 
     @classmethod
@@ -66,10 +70,14 @@ class _TransformGroup(LieGroup):
         return _matrix.assemble(r, rng.standard_normal(batch + (cls.point_dim,)))
 
     @classmethod
-    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
-        r, t = _matrix.split(a)
-        _matrix.check_rotation(r, tol, name)
+    def _verify(cls, a: FloatArray, tol: float, name: str) -> None:
+        _matrix.check_rotation(_matrix.split(a)[0], tol, name)
         _matrix.check_last_row(a, tol, name)
+
+    @classmethod
+    def _validated(cls, a: FloatArray, tol: float, name: str) -> FloatArray:
+        cls._verify(a, tol, name)
+        r, t = _matrix.split(a)
         return _matrix.assemble(_matrix.polish_rotation(r), t)
 
     @classmethod

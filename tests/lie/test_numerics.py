@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from manopt_lie import SE2, SE3, SO2, SO3
-from manopt_lie.lie import _series
+from manopt_lie.lie import _matrix, _series
 
 from .helpers import GROUPS, ROTATION_PART, SCALE_PART, assert_same, group_id
 
@@ -251,3 +251,18 @@ class TestAgainstScipy:
         p = rng.standard_normal((2000, 3))
         np.testing.assert_allclose(x.act(p), r.apply(p), atol=1e-13)
         np.testing.assert_allclose((x @ x[::-1]).as_matrix(), (r * r[::-1]).as_matrix(), atol=1e-14)
+
+
+@pytest.mark.parametrize("d", [2, 3, 4])
+@pytest.mark.parametrize("batch", [(), (1,), (3, 1, 2), (700,)], ids=str)
+def test_rotation_error_written_out_is_numpys(d, batch, rng):
+    """``max |RᵀR − I|`` from the column products and ``det R`` written out (d ≤ 3) agree with
+    NumPy's batched product and LAPACK's determinant, for matrices near and far from SO(d)."""
+    r = rng.standard_normal(batch + (d, d))
+    near = np.linalg.qr(r)[0] + 1e-9 * rng.standard_normal(batch + (d, d))
+    for m in (r, near, np.swapaxes(r, -1, -2)):  # a transposed view: not contiguous
+        err, det = _matrix.rotation_error(m)
+        expected = np.abs(np.swapaxes(m, -1, -2) @ m - np.eye(d)).max(axis=(-2, -1))
+        assert err.shape == det.shape == batch
+        np.testing.assert_allclose(err, expected, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(det, np.linalg.det(m), rtol=1e-12, atol=1e-14)
