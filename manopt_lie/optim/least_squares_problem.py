@@ -240,9 +240,8 @@ class _Layout:
         out = np.empty_like(f.variables)
         for s, block in enumerate(self.slots(f)):
             local, size = f.variables[:, s], self.sizes[block]
-            bad = (local < 0) | (local >= size)
-            if bad.any():
-                edge = int(np.argmax(bad))
+            if local.min() < 0 or local.max() >= size:
+                edge = int(np.argmax((local < 0) | (local >= size)))
                 where = f"block {block!r} " if block else ""
                 raise ValueError(
                     f"{f.name}: edge {edge} refers to variable {f.variables[edge].tolist()} "
@@ -478,11 +477,8 @@ class LeastSquaresProblem(Problem):
         """Per slot of factor ``k`` holding fixed variables: those edges and the slot's column range in
         the factor's block."""
         fixed = self._fixed[self._variables[k]]
-        if not fixed.any():
-            return []
-        edges, slots = np.nonzero(fixed)
-        starts = np.cumsum([0, *(self._layout.block_dims[b] for b in self._slots[k])])
-        return [(edges[slots == t], int(starts[t]), int(starts[t + 1])) for t in np.unique(slots)]
+        starts = list(itertools.accumulate((self._layout.block_dims[b] for b in self._slots[k]), initial=0))
+        return [(np.flatnonzero(fixed[:, t]), starts[t], starts[t + 1]) for t in np.flatnonzero(fixed.any(axis=0))]
 
     def _jacobian_block(self, k: int, jacobians: Sequence[FloatArray]) -> FloatArray:
         """Factor ``k``'s Jacobians side by side, ``(m, r, Σd)``, with zero columns for the
