@@ -19,6 +19,7 @@ from manopt_lie.optim import (
     LevenbergMarquardt,
     Linearization,
     Problem,
+    SideBySide,
     Status,
     TrustRegion,
 )
@@ -374,3 +375,57 @@ def test_gradient_solvers_on_least_squares_assemble_no_hessian(monkeypatch):
     count = _counting_hessians(monkeypatch)
     res = ConjugateGradient(max_iterations=30).solve(problem, x0)
     assert res.nit > 0 and count[0] == 0
+
+
+def test_side_by_side_jacobians_are_read_whole_and_agree_with_a_list():
+    """A factor with fresh Jacobians returned as a SideBySide is read as its one block — the
+    fixed variable's columns are zeroed in that very array — and as a plain list concatenated:
+    the same linearization either way."""
+    problem, _, x0 = pose_chain(SE3, n=10, closures=3, noise=0.01)
+    (factor,) = problem.factors
+    blocks = []
+
+    def joined(xi, xj, jac=False):
+        if not jac:
+            return factor.residual(xi, xj)
+        r, (j_i, j_j) = factor.residual(xi, xj, jac=True)
+        blocks.append(np.concatenate([j_i, j_j], axis=-1))
+        return r, SideBySide(blocks[-1], (6, 6))
+
+    def listed(xi, xj, jac=False):
+        out = joined(xi, xj, jac)
+        return out if not jac else (out[0], list(out[1]))
+
+    fixed = np.flatnonzero(problem.fixed)
+    lins = [LeastSquaresProblem(problem.manifold, [Factor(factor.variables, residual, fresh_jacobians=True)],
+                                fixed=fixed).linearize(x0) for residual in (joined, listed)]  # fmt: skip
+    np.testing.assert_array_equal(lins[0].grad, lins[1].grad)
+    np.testing.assert_array_equal(lins[0].hessian.toarray(), lins[1].hessian.toarray())
+    first = np.flatnonzero(factor.variables[:, 0] == fixed[0])  # edges leaving the fixed pose
+    assert first.size and not blocks[0][first, :, :6].any()  # zeroed in the factor's own block
+    assert blocks[1][first, :, :6].any()  # the list's slices were concatenated, not written into
+    block = SideBySide(np.zeros((4, 6, 9)), (6, 3))
+    assert [j.shape for j in block] == [(4, 6, 6), (4, 6, 3)] and np.shares_memory(block[1], block.block)
+    with pytest.raises(ValueError, match="SideBySide"):
+        SideBySide(np.zeros((4, 6, 9)), (6, 6))
+
+
+def test_small_problems_store_their_normal_equations_dense():
+    """Up to DENSE_MAX unknowns the structure stores every entry of H (H.data the matrix), and
+    the solution is the same as through the sparse pattern."""
+    from manopt_lie.linalg import DENSE_MAX
+
+    small, _, x0 = pose_chain(SE3, n=DENSE_MAX // 6, closures=3, noise=0.01)
+    large, _, y0 = pose_chain(SE3, n=DENSE_MAX // 6 + 1, closures=3, noise=0.01)
+    lin = small.linearize(x0)
+    large.linearize(y0)
+    assert small.structure.dense and not large.structure.dense
+    n = small.structure.n
+    np.testing.assert_array_equal(lin.hessian.data.reshape(n, n).T, lin.hessian.toarray())
+    sparse = BlockStructure(small.dims, [(small.factors[0].variables, 6)])
+    (block,) = lin._jacobians
+    expected = sparse.hessian([block]).toarray()
+    expected[np.diag_indices(n)] += np.repeat(small.fixed, 6)  # the fixed pose's 1s
+    np.testing.assert_allclose(lin.hessian.toarray(), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    res = LevenbergMarquardt().solve(small, x0)
+    assert res.success
