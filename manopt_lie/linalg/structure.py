@@ -59,6 +59,9 @@ class BlockStructure:
         ``(m, arity)`` of the variables each edge touches, in slot order (all
         variables in one slot share a dimension; an edge touches a variable at
         most once); ``residual_dim`` is the length of each edge's residual.
+    dense : bool
+        Store every entry of ``H`` (``n²``: for small systems, see
+        :data:`~manopt_lie.linalg.DENSE_MAX`) instead of the touched blocks.
 
     Raises
     ------
@@ -74,6 +77,8 @@ class BlockStructure:
     offsets : ndarray of int, shape (n_vars + 1,)
         ``[0, cumsum(dims)]``: variable ``v`` owns coordinates
         ``offsets[v]:offsets[v + 1]`` of ``δ``, ``g`` and ``H``.
+    dense : bool
+        Whether every entry of ``H`` is stored.
 
     Notes
     -----
@@ -96,6 +101,9 @@ class BlockStructure:
             raise ValueError("factors must hold at least one factor type")
         checked = [check_factor(k, ids, r, self.dims) for k, (ids, r) in enumerate(factors)]
         self.dense = bool(dense)
+        self._n = int(self.offsets[-1])
+        self._ordering: IntArray | None = None  # computed at first use
+        self._digest: bytes | None = None
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [
@@ -109,6 +117,7 @@ class BlockStructure:
             scatters = [self._build_factor(f, b, layout) for f, b in zip(self._factors, block_ids, strict=True)]
             self._hess_scatter = [h for h, _ in scatters]
             self._grad_scatter = [g for _, g in scatters]
+        self._diag_pos.flags.writeable = False
         # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
         self._chunks = [max(1, CHUNK // f.width**2) for f in self._factors]
         # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
@@ -157,12 +166,10 @@ class BlockStructure:
         stream_start = exclusive_cumsum(col_len)
         within = exclusive_cumsum(dims[brow])[:-1] - stream_start[bcol]
 
-        n, nnz = int(self.offsets[-1]), int(base[-1])
+        n, nnz = self._n, int(base[-1])
         itype = index_dtype(max(nnz, n))
         # The variables' graph (block CSC, both triangles): what a fill-reducing ordering reads.
         self._block_pattern = (exclusive_cumsum(np.bincount(bcol, minlength=nv)).astype(itype), brow.astype(itype))
-        self._ordering: IntArray | None = None
-        self._digest: bytes | None = None
         var_of_col = np.repeat(np.arange(nv), dims)
         j_local = np.arange(n) - self.offsets[var_of_col]
         indptr = np.append(base[var_of_col] + j_local * col_len[var_of_col], nnz)
@@ -179,8 +186,6 @@ class BlockStructure:
         self._indptr = indptr.astype(itype)
         self._indices = indices
         self._diag_pos = (indptr[:-1] + within[inverse[:nv]][var_of_col] + j_local).astype(itype)
-        self._diag_pos.flags.writeable = False
-        self._n = n
         parts = np.split(inverse[nv:], np.cumsum([ids.size * ids.shape[1] for ids in all_ids])[:-1])
         blocks = [p.reshape(ids.shape[1], *ids.shape) for p, ids in zip(parts, all_ids, strict=True)]
         return blocks, (col_len, base, within)
@@ -190,16 +195,12 @@ class BlockStructure:
         at ``j·n + i`` of ``H.data``; the variables' graph complete. For small systems, where the
         bookkeeping of a sparse pattern costs more than the entries it leaves out
         (:data:`~manopt_lie.linalg.DENSE_MAX`)."""
-        nv, n = self.dims.size, int(self.offsets[-1])
+        nv, n = self.dims.size, self._n
         itype = index_dtype(n * n)
         self._block_pattern = (np.arange(nv + 1, dtype=itype) * nv, np.tile(np.arange(nv, dtype=itype), nv))
-        self._ordering = None
-        self._digest = None
         self._indptr = np.arange(n + 1, dtype=itype) * n
         self._indices = np.tile(np.arange(n, dtype=itype), n)
         self._diag_pos = np.arange(n, dtype=itype) * (n + 1)
-        self._diag_pos.flags.writeable = False
-        self._n = n
 
     def _dense_scatters(self) -> tuple[list[NDArray[np.signedinteger]], list[NDArray[np.signedinteger]]]:
         """A dense structure's H and g scatters: entry ``[p, q]`` of ``A_eᵀA_e`` at ``c_p·n + c_q``,

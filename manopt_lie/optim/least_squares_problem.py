@@ -181,7 +181,20 @@ class SideBySide(list):  # type: ignore[type-arg]
     """The Jacobians of a factor's slots, in slot order, declared to be the consecutive
     last-axis slices of one ``(m, k, Σd)`` array, :attr:`block` (the library's fused pose
     factors return them so): a :class:`LeastSquaresProblem` then reads ``block`` whole instead of
-    concatenating the slices. A plain list to everyone else."""
+    concatenating the slices. A plain list to everyone else.
+
+    Parameters
+    ----------
+    block : ndarray, shape (m, k, Σd)
+        The Jacobians of all slots side by side: ``[J_1 | J_2 | …]``.
+    widths : sequence of int
+        ``d_s``, the width of each slot's Jacobian (their sum is ``block``'s last axis).
+
+    Raises
+    ------
+    ShapeError
+        If ``block`` is not 3-D or its last axis is not ``Σ d_s``.
+    """
 
     __slots__ = ("block",)
 
