@@ -31,7 +31,8 @@ from numpy.typing import NDArray
 
 from ._factors import exclusive_cumsum
 
-__all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "triangle", "values_view"]
+__all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "permuted_block_triangle", "triangle"]
+__all__ += ["ranges", "values_view"]
 
 IndexArray = NDArray[np.signedinteger]
 Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)
@@ -168,6 +169,87 @@ def coordinate_major_triangle(
             out[head[cols] + within] = at_b[blocks] + a
             head += per_column
     return cvxopt.sparse(grid), gather, coords
+
+
+def ranges(counts: NDArray[np.intp]) -> NDArray[np.intp]:
+    """``0 … c − 1`` for every ``c`` of ``counts``, concatenated."""
+    return np.arange(int(counts.sum())) - np.repeat(exclusive_cumsum(counts)[:-1], counts)
+
+
+def permuted_block_triangle(
+    indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp],
+    upper: bool = False,
+) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.signedinteger]]:
+    """The lower (``upper``: the upper) triangle of ``B = P H Pᵀ``, ``P`` the permutation that
+    puts variable ``order[k]`` k-th (its coordinates kept together and in order), as 32-bit CSC
+    arrays ``(indptr, indices)`` with sorted rows, and the position in ``H.data`` of each entry
+    (``H``'s index dtype).
+
+    ``H`` (CSC ``indptr``) is the scalar expansion of the block pattern (``dims``,
+    ``block_indptr``, ``block_rows``: both triangles, every diagonal block, rows sorted), as
+    :class:`~manopt_lie.linalg.BlockStructure` builds it: entry ``(o_w + a, o_v + b)`` of block
+    ``k = (w, v)`` sits at ``s_k + b·ℓ_v + a`` (``ℓ_v`` the length of each of ``v``'s columns).
+    Column ``c`` of ``B`` (variable ``v = order[c]``, coordinate ``b``) holds the rows ``a ≥ b`` of
+    ``v``'s diagonal block, then the off-diagonal blocks below it in ``B``'s order (the upper
+    triangle: the blocks above, then the rows ``a ≤ b``). Everything is built at the level of
+    blocks and expanded once (sorting scalars would cost 10–15 ms on parking-garage). Trusted:
+    the pattern is not checked.
+    """
+    nv = dims.size
+    offsets = exclusive_cumsum(dims)
+    rank = np.empty(nv, dtype=np.intp)
+    rank[order] = np.arange(nv)
+    new_dims = dims[order].astype(np.intp)
+    new_offsets = exclusive_cumsum(new_dims)
+    block_cols = columns(block_indptr).astype(np.intp)
+    rows = block_rows.astype(np.intp)
+    first = indptr[offsets[:-1]].astype(np.intp)
+    length = (indptr[offsets[1:]].astype(np.intp) - first) // dims  # ℓ_v
+    rho = exclusive_cumsum(dims[rows])
+    start = first[block_cols] + rho[:-1] - rho[block_indptr[block_cols]]  # s_k
+    new_col, new_row = rank[block_cols], rank[rows]
+    diagonal = np.empty(nv, dtype=np.intp)
+    diagonal[new_col[new_col == new_row]] = np.flatnonzero(new_col == new_row)  # v's block, by v's rank
+    off = np.flatnonzero(new_row < new_col if upper else new_row > new_col)
+    off = off[np.argsort(new_col[off] * nv + new_row[off], kind="stable")]  # B's block order
+
+    # The off-diagonal rows of each of B's block columns ("stream"), at coordinate b = 0.
+    widths = dims[rows[off]].astype(np.intp)
+    stream_len = np.bincount(new_col[off], weights=widths, minlength=nv).astype(np.intp)
+    within = ranges(widths)
+    stream_row = (np.repeat(new_offsets[new_row[off]], widths) + within).astype(np.int32)
+    stream_pos = (np.repeat(start[off], widths) + within).astype(indptr.dtype)
+    stream_start = exclusive_cumsum(stream_len)
+
+    # Scalar column j: block column c, coordinate b; its diagonal rows a ≥ b (upper: a ≤ b).
+    c = np.repeat(np.arange(nv), new_dims)
+    b = np.arange(int(new_offsets[-1])) - new_offsets[c]
+    n_diag = b + 1 if upper else new_dims[c] - b
+    step = b * length[order[c]]  # from coordinate 0 to b in H's columns of the variable
+    count = stream_len[c]
+    out_ptr = exclusive_cumsum(n_diag + count)
+
+    # Column j copies its block column's stream (positions shifted by its step): in the output's
+    # order, the stream entries are contiguous pieces of the stream arrays.
+    pieces = exclusive_cumsum(count)
+    source = np.repeat((stream_start[c] - pieces[:-1]).astype(indptr.dtype), count)
+    source += np.arange(int(pieces[-1]), dtype=indptr.dtype)
+    stream_rows, stream_at = np.take(stream_row, source), np.take(stream_pos, source)
+    stream_at += np.repeat(step.astype(indptr.dtype), count)
+    del source
+
+    # The diagonal entries (n (d + 1) / 2 of them) go where the streams leave room.
+    a = ranges(n_diag) + (0 if upper else np.repeat(b, n_diag))
+    jd = np.repeat(np.arange(b.size), n_diag)
+    at = out_ptr[jd] + (count[jd] if upper else 0) + (a if upper else a - b[jd])
+    is_diagonal = np.zeros(int(out_ptr[-1]), dtype=bool)
+    is_diagonal[at] = True
+    out_rows = np.empty(is_diagonal.size, dtype=np.int32)
+    gather = np.empty(is_diagonal.size, dtype=indptr.dtype)
+    out_rows[at], gather[at] = new_offsets[c[jd]] + a, start[diagonal[c[jd]]] + step[jd] + a
+    is_stream = ~is_diagonal
+    out_rows[is_stream], gather[is_stream] = stream_rows, stream_at
+    return out_ptr.astype(np.int32), out_rows, gather
 
 
 _POINTER = ctypes.sizeof(ctypes.c_void_p)

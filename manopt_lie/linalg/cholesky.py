@@ -13,7 +13,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._analyses import ANALYSES, pattern_key
-from ._backends import _CHOLMOD, _PACKAGES, BACKENDS, DENSE_MAX, Backend, available_backends
+from ._backends import _PACKAGES, BACKENDS, DENSE_MAX, Backend, available_backends
+from ._cholmod import cholmod_backend
 from ._factors import same_buffer
 from ._vector import dot, norm
 from .errors import SingularSystemError
@@ -193,10 +194,10 @@ class CholeskySolver:
             if trusted and self.backend == "cholmod":
                 assert self._structure is not None
                 structure = self._structure
-                impl = _CHOLMOD(H.indptr, H.indices, structure.fill_reducing_ordering(), self.supernodal,
+                impl = cholmod_backend(H.indptr, H.indices, structure.fill_reducing_ordering(), self.supernodal,
                                 (structure.dims, *structure.block_pattern))  # fmt: skip
             elif self.backend == "cholmod":
-                impl = _CHOLMOD(H.indptr, H.indices, None, self.supernodal)
+                impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal)
             else:
                 impl = BACKENDS[self.backend](H.indptr, H.indices)
         if self._lend is not None:

@@ -101,11 +101,10 @@ class CholeskyFactor:
 
 
 def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
-    cholmod = impl._cholmod
     n = H.shape[0]
     perm = impl.permutation()
-
-    numeric = [True]  # whether impl._factor holds a numeric factorization
+    direct = hasattr(impl, "factor_csc")  # CHOLMOD called directly: L read from a copy of the factor
+    numeric = [True]  # whether the backend's factor is numeric (CVXOPT's getfactor leaves it symbolic)
 
     def solve(b: FloatArray) -> FloatArray:
         if not numeric[0]:
@@ -114,10 +113,12 @@ def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
         return np.asarray(impl.solve(b), dtype=np.float64)
 
     def lower() -> sp.csc_matrix:
-        # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize.
         pivots = impl.pivots
-        colptr, rowind, values = cholmod.getfactor(impl._factor).CCS
-        numeric[0] = False
+        if direct:
+            values, rowind, colptr = impl.factor_csc()
+        else:  # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize
+            colptr, rowind, values = impl._cholmod.getfactor(impl._factor).CCS
+            numeric[0] = False
         arrays = [np.asarray(a).reshape(-1) for a in (values, rowind, colptr)]
         if pivots is None:  # LLᵀ
             return sp.csc_matrix(tuple(arrays), shape=(n, n))

@@ -14,6 +14,7 @@ from manopt_lie.linalg import (
     CholeskySolver,
     SingularSystemError,
     _backends,
+    _cholmod,
     _memory,
     _triangles,
     block_jacobi,
@@ -269,6 +270,7 @@ def test_cholmod_of_a_structure_factors_h_in_coordinate_major_order(rng, monkeyp
     H, g = S.normal_equations(blocks, residuals)
     S.add_diagonal(H, 1.0, inplace=True)  # every variable definite, even one no factor touches
     monkeypatch.setattr(_backends, "GRID_ENTRIES", 1)
+    monkeypatch.setenv("MANOPT_LIE_CHOLMOD", "cvxopt")  # CHOLMOD through CVXOPT's interface
     ANALYSES.clear()
     solver = CholeskySolver("cholmod").bind(S)
     x = solver(H, g)
@@ -335,9 +337,10 @@ def test_cholmod_reads_the_triangle_its_kind_permutes_fastest(rng, monkeypatch, 
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
-def test_cholmod_of_a_small_structure_keeps_the_order_of_h(rng):
+def test_cholmod_of_a_small_structure_keeps_the_order_of_h(rng, monkeypatch):
     """Below ``GRID_ENTRIES`` a bound solver builds ``H``'s own triangle from triplets (faster
-    there) and solves in it; from there on, the coordinate-major grid."""
+    there) and solves in it; from there on, the coordinate-major grid (through CVXOPT)."""
+    monkeypatch.setenv("MANOPT_LIE_CHOLMOD", "cvxopt")
     S, blocks, residuals = pose_graph(rng, n_poses=8, d=3)
     H, g = S.normal_equations(blocks, residuals)
     assert (H.nnz + S.n) // 2 < _backends.GRID_ENTRIES
@@ -435,17 +438,21 @@ def test_pcg_errors(system):
 
 
 @pytest.mark.skipif("cholmod" not in BACKENDS, reason="CHOLMOD (cvxopt) is not installed")
-def test_cholmod_hands_a_large_analysis_transients_back(rng, monkeypatch):
+@pytest.mark.parametrize("direct", [True, False], ids=["direct", "cvxopt"])
+def test_cholmod_hands_a_large_analysis_transients_back(rng, monkeypatch, direct):
     """An analysis of at least ``TRIM_ENTRIES`` lower-triangle entries returns the heap's free
     pages to the system once (glibc's ``malloc_trim``), a smaller one does not; both solve alike."""
+    module = _cholmod if direct else _backends
+    if not direct:
+        monkeypatch.setenv("MANOPT_LIE_CHOLMOD", "cvxopt")
     calls: list[int] = []
-    monkeypatch.setattr(_backends, "release_freed_memory", lambda: calls.append(1) or True)
+    monkeypatch.setattr(module, "release_freed_memory", lambda: calls.append(1) or True)
     S, blocks, residuals = pose_graph(rng, n_poses=30, d=3)
     H, g = S.normal_equations(blocks, residuals)
     lower = sp.tril(H).nnz
     x = {}
     for threshold, expected in ((lower + 1, 0), (lower, 1)):
-        monkeypatch.setattr(_backends, "TRIM_ENTRIES", threshold)
+        monkeypatch.setattr(module, "TRIM_ENTRIES", threshold)
         ANALYSES.clear()
         calls.clear()
         x[threshold] = CholeskySolver("cholmod")(H, g)
