@@ -5,9 +5,10 @@ canonical CSC matrix storing both triangles), computes its fill-reducing
 ordering and symbolic analysis there, once, and then only refactors new
 values (``factorize(data)``) and solves (``solve(b)``):
 
-- ``cholmod`` (CHOLMOD from SuiteSparse, through the optional package
-  ``cvxopt``): ordering and symbolic analysis once, numeric factorization of
-  the lower triangle per call. A given fill-reducing ordering (the structure's
+- ``cholmod`` (CHOLMOD from SuiteSparse, shipped by the optional package
+  ``cvxopt``; called directly where :mod:`~manopt_lie.linalg._cholmod`'s checks pass,
+  else through CVXOPT's interface, :class:`_CHOLMOD` below): ordering and symbolic
+  analysis once, numeric factorization of one triangle per call. A given fill-reducing ordering (the structure's
   AMD on the variables' graph) spares CHOLMOD its own AMD on the coordinates,
   the bulk of its analysis memory. CHOLMOD chooses between its two kinds from the
   analysis (flops per entry of the factor): dense, well-connected graphs fill in
@@ -17,7 +18,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
   (``benchmarks/bench_linalg.py``, ``benchmarks/bench_scaling.py``); a solver bound
   to a structure of 3-D poses asks for supernodes (``CholeskySolver``). ``LDLᵀ``
   does not fail on an indefinite matrix, so the signs of ``D`` are read after
-  every factorization (one diagonal solve).
+  every factorization.
 - ``qdldl`` (optional package ``qdldl``): AMD ordering and elimination tree
   computed once, LDLᵀ of the upper triangle refactored by ``Solver.update``.
 - ``superlu`` (SciPy, always present): SuperLU's multiple minimum degree
