@@ -96,6 +96,22 @@ def triangle(
     return joined, np.concatenate(positions)
 
 
+def _block_starts(
+    indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Per block ``k = (w, v)`` of the pattern: its column ``v``, its row ``w`` and ``s_k``, the
+    position in ``H.data`` of its entry ``(o_w, o_v)``; and per variable ``ℓ_v``, the length of
+    each of its columns (entry ``(o_w + a, o_v + b)`` of block ``k`` sits at ``s_k + b·ℓ_v + a``)."""
+    offsets = exclusive_cumsum(dims)
+    block_cols = columns(block_indptr).astype(np.intp)
+    rows = block_rows.astype(np.intp)
+    first = indptr[offsets[:-1]].astype(np.intp)
+    length = (indptr[offsets[1:]].astype(np.intp) - first) // dims
+    rho = exclusive_cumsum(dims[rows])  # ρ_k: how far down its column block k begins
+    start = first[block_cols] + rho[:-1] - rho[block_indptr[block_cols]]
+    return block_cols, rows, start, length
+
+
 def coordinate_major_triangle(
     cvxopt: Any, indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray,
     upper: bool = False,
@@ -113,13 +129,7 @@ def coordinate_major_triangle(
     """
     nv, d_max = dims.size, int(dims.max())
     offsets = exclusive_cumsum(dims)
-    block_cols = columns(block_indptr).astype(np.intp)
-    rows = block_rows.astype(np.intp)
-    first = indptr[offsets[:-1]].astype(np.intp)
-    length = (indptr[offsets[1:]].astype(np.intp) - first) // dims  # ℓ_v
-    rho = exclusive_cumsum(dims[rows])
-    rho = rho[:-1] - rho[block_indptr[block_cols]]
-    start = first[block_cols] + rho  # position of entry (o_w, o_v) of block k
+    block_cols, rows, start, length = _block_starts(indptr, dims, block_indptr, block_rows)
     step = length[block_cols]  # from column o_v + b to o_v + b + 1
 
     # Coordinate a exists for the variables with d_v > a; their rank among those numbers them.
@@ -196,17 +206,11 @@ def permuted_block_triangle(
     the pattern is not checked.
     """
     nv = dims.size
-    offsets = exclusive_cumsum(dims)
     rank = np.empty(nv, dtype=np.intp)
     rank[order] = np.arange(nv)
     new_dims = dims[order].astype(np.intp)
     new_offsets = exclusive_cumsum(new_dims)
-    block_cols = columns(block_indptr).astype(np.intp)
-    rows = block_rows.astype(np.intp)
-    first = indptr[offsets[:-1]].astype(np.intp)
-    length = (indptr[offsets[1:]].astype(np.intp) - first) // dims  # ℓ_v
-    rho = exclusive_cumsum(dims[rows])
-    start = first[block_cols] + rho[:-1] - rho[block_indptr[block_cols]]  # s_k
+    block_cols, rows, start, length = _block_starts(indptr, dims, block_indptr, block_rows)
     new_col, new_row = rank[block_cols], rank[rows]
     diagonal = np.empty(nv, dtype=np.intp)
     diagonal[new_col[new_col == new_row]] = np.flatnonzero(new_col == new_row)  # v's block, by v's rank
