@@ -203,6 +203,11 @@ SUPERNODAL = 1
 supernodal ``LLᵀ`` or simplicial ``LDLᵀ`` (2 forces supernodes, 0 forbids them)."""
 
 
+def supernodal_setting(supernodal: bool | None) -> int:
+    """CHOLMOD's ``supernodal`` setting for a solver's request (``None``: :data:`SUPERNODAL`)."""
+    return SUPERNODAL if supernodal is None else 2 if supernodal else 0
+
+
 GRID_ENTRIES = 1 << 13
 """Lower-triangle entries from which a pattern given by its blocks is built as a grid of copies
 of the block pattern (:func:`~manopt_lie.linalg._triangles.coordinate_major_triangle`): below,
@@ -258,7 +263,7 @@ class _CHOLMOD:
         with _CHOLMOD_OPTIONS_LOCK:
             saved = dict(cholmod.options)
             # Options are module-global: set for this analysis only.
-            cholmod.options["supernodal"] = SUPERNODAL if supernodal is None else 2 if supernodal else 0
+            cholmod.options["supernodal"] = supernodal_setting(supernodal)
             try:
                 if ordering is None:
                     self._factor = cholmod.symbolic(self._A, uplo=self.uplo)

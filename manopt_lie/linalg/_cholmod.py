@@ -40,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from ._backends import _CHOLMOD, SUPERNODAL
+from ._backends import _CHOLMOD, supernodal_setting
 from ._factors import exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._triangles import check_diagonal, columns, permuted_block_triangle, ranges
@@ -270,10 +270,9 @@ class Cholmod:
         self._common = ctypes.create_string_buffer(_COMMON_BYTES)
         if not lib.cholmod_start(self._common):
             raise RuntimeError("cholmod_start failed")
-        common = _Common.from_buffer(self._common)
-        self._status = lambda: common.status
+        common = self._settings = _Common.from_buffer(self._common)
         common.print = 0  # failures are raised here, not printed
-        common.supernodal = SUPERNODAL if supernodal is None else 2 if supernodal else 0
+        common.supernodal = supernodal_setting(supernodal)
         self._handle = c_void_p()  # the factor (a cholmod_factor*), freed with the Common
         self._release = weakref.finalize(self, _release, lib, self._common, self._handle)
         # The pattern of H as it is: a symmetric CHOLMOD matrix reads its lower triangle only.
@@ -316,13 +315,13 @@ class Cholmod:
 
     def _factor(self) -> _Factor:
         if not self._handle.value:
-            raise RuntimeError(f"CHOLMOD analysis failed (status {self._status()})")
+            raise RuntimeError(f"CHOLMOD analysis failed (status {self._settings.status})")
         return _Factor.from_address(self._handle.value)
 
     def factorize(self, data: FloatArray) -> None:
         np.take(np.asarray(data, dtype=np.float64), self._gather, out=self._values, mode="clip")
         ok = self._lib.cholmod_factorize(byref(self._matrix), self._handle, self._common)
-        factor, status = self._factor(), self._status()
+        factor, status = self._factor(), self._settings.status
         if not ok or status < 0:
             raise SingularSystemError(f"CHOLMOD factorization failed (status {status})")
         if status == _NOT_POSDEF or factor.minor < self._n:
@@ -346,7 +345,7 @@ class Cholmod:
         dense = _Dense(self._n, k, self._n * k, self._n, rhs.ctypes.data, None, _REAL, _DOUBLE)
         x = self._lib.cholmod_solve(_SOLVE_A, self._handle, byref(dense), self._common)
         if not x:
-            raise SingularSystemError(f"CHOLMOD solve failed (status {self._status()})")
+            raise SingularSystemError(f"CHOLMOD solve failed (status {self._settings.status})")
         try:
             solution = _array(x.contents.x, np.float64, self._n * k).reshape(b.shape, order="F")
             out = np.empty_like(b)
