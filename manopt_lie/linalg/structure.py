@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._analyses import digest
-from ._factors import FactorIndex, check_factor, exclusive_cumsum, index_dtype, same_buffer
+from ._factors import FactorIndex, HessianScatter, check_factor, exclusive_cumsum, index_dtype, same_buffer
 
 __all__ = ["BlockStructure"]
 
@@ -126,16 +126,22 @@ class BlockStructure:
         self._local = threading.local()
         self._jac: _JacobianPattern | None = None
 
-    def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A)."""
-        work: tuple[FloatArray, FloatArray, FloatArray] | None = getattr(self._local, "work", None)
+    def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]:
+        """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A, and
+        the positions of a chunk's products where a factor's scatter is made per chunk)."""
+        work: tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]] | None = getattr(
+            self._local, "work", None
+        )
         if work is None:
             sizes = [
                 (c * f.width**2, c * f.width, c * f.residual_dim * f.width)
                 for c, f in zip(self._chunks, self._factors, strict=True)
             ]
+            made = [(c * s.width**2, s.dtype) for c, s in zip(self._chunks, self._hess_scatter, strict=True)
+                    if s.whole is None]  # fmt: skip
+            positions = np.empty(max((n for n, _ in made), default=0), dtype=made[0][1] if made else np.int32)
             work = (np.empty(max(h for h, _, _ in sizes)), np.empty(max(g for _, g, _ in sizes)),
-                    np.empty(max(w for _, _, w in sizes)))  # fmt: skip
+                    np.empty(max(w for _, _, w in sizes)), positions)  # fmt: skip
             self._local.work = work
         return work
 
@@ -202,12 +208,15 @@ class BlockStructure:
         self._indices = np.tile(np.arange(n, dtype=itype), n)
         self._diag_pos = np.arange(n, dtype=itype) * (n + 1)
 
-    def _dense_scatters(self) -> tuple[list[NDArray[np.signedinteger]], list[NDArray[np.signedinteger]]]:
+    def _dense_scatters(self) -> tuple[list[HessianScatter], list[NDArray[np.signedinteger]]]:
         """A dense structure's H and g scatters: entry ``[p, q]`` of ``A_eᵀA_e`` at ``c_p·n + c_q``,
         ``c`` the coordinates of ``A_e``'s columns."""
         itype = index_dtype(self._n * self._n)
         columns = [self._coordinates(f).astype(itype) for f in self._factors]
-        hessian = [(c[:, :, None] * self._n + c[:, None, :]).reshape(-1) for c in columns]
+        hessian = [
+            HessianScatter(c * itype(self._n), np.broadcast_to(c, (len(f.slot_dims), *c.shape)), f.slot_dims)
+            for c, f in zip(columns, self._factors, strict=True)
+        ]
         return hessian, [c.reshape(-1) for c in columns]
 
     def _coordinates(self, f: FactorIndex) -> IntArray:
@@ -217,27 +226,23 @@ class BlockStructure:
 
     def _build_factor(
         self, f: FactorIndex, block: IntArray, layout: _Layout
-    ) -> tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]:
+    ) -> tuple[HessianScatter, NDArray[np.signedinteger]]:
         """Index arrays of one factor type: its H and g scatters."""
-        ids, slot_dims, m, width = f.var_ids, f.slot_dims, f.m, f.width
+        ids, slot_dims = f.var_ids, f.slot_dims
         itype = index_dtype(max(self.nnz, self._n))
-        starts = np.cumsum((0, *slot_dims))
         colmap = self._coordinates(f)
         # A_eᵀA_e is symmetric, so its entry [p, q] may go to H[q, p]: consecutive
         # q then land on consecutive rows of one CSC column, which makes the
         # scatter far more cache-friendly than walking along a row.
-        hess = np.empty((m, width, width), dtype=itype)
         col_len, base, within = (a.astype(itype) for a in layout)
         local = np.concatenate([np.arange(ds, dtype=itype) for ds in slot_dims])  # i within each slot
-        for t, dt in enumerate(slot_dims):
-            b = ids[:, t]
-            # Row starts[t] + j of A_eᵀA_e goes to column o_b + j: base[b] + j·L[b], then per entry
-            # q (slot s, row i of its block) the offset within[block[t, e, s]] + i. One broadcast
-            # add per slot t writes whole rows of width entries (rows of one block are short).
-            column = col_len[b, None] * np.arange(dt, dtype=itype) + base[b, None]  # (m, dt)
-            offset = np.repeat(within[block[t]], slot_dims, axis=1) + local  # (m, width)
-            np.add(column[:, :, None], offset[:, None, :], out=hess[:, starts[t] : starts[t + 1], :])
-        return hess.reshape(-1), colmap.astype(itype).reshape(-1)
+        # Row j of slot t (variable b) goes to column o_b + j, which starts at base[b] + j·L[b];
+        # its entry q (slot s, row i of that slot's block) then sits at within[block[t, e, s]] + i.
+        rows = [col_len[ids[:, t], None] * np.arange(dt, dtype=itype) + base[ids[:, t], None]
+                for t, dt in enumerate(slot_dims)]  # fmt: skip
+        row_start = np.concatenate(rows, axis=1)  # (m, width)
+        offset = np.stack([np.repeat(within[block[t]], slot_dims, axis=1) + local for t in range(len(slot_dims))])
+        return HessianScatter(row_start, offset, slot_dims), colmap.astype(itype).reshape(-1)
 
     def _jacobian_pattern(self) -> _JacobianPattern:
         """CSR pattern of ``J`` — every row of edge ``e`` holds ``e``'s columns, sorted — and
@@ -469,14 +474,14 @@ class BlockStructure:
         self, blocks: list[FloatArray], weights: list[FloatArray | None], out: sp.csc_matrix | None = None
     ) -> sp.csc_matrix:
         """``Σ_e w_e A_eᵀA_e`` scattered into a fresh ``H`` (or into ``out``, zeroed first)."""
-        hess_vals, _, weighted = self._workspaces()
+        hess_vals, _, weighted, positions = self._workspaces()
         if out is None:
             data = np.zeros(self.nnz)
         else:
             data = out.data
             data.fill(0.0)
         for k, (a, w, f) in enumerate(zip(blocks, weights, self._factors, strict=True)):
-            hs, width, step = self._hess_scatter[k], f.width, self._chunks[k]
+            scatter, width, step = self._hess_scatter[k], f.width, self._chunks[k]
             # Chunks of edges: the products of one chunk stay in cache and in a small workspace,
             # and np.add.at sums them into H (int32 scatters on its fast path). W A_e goes to a
             # workspace even for unit weights: NumPy's matmul of two views of one array takes
@@ -490,14 +495,14 @@ class BlockStructure:
                 else:
                     np.multiply(ac, w[e0:e1, None, None], out=aw)
                 prod = np.matmul(aw.transpose(0, 2, 1), ac, out=hess_vals[: c * width * width].reshape(c, width, width))
-                np.add.at(data, hs[e0 * width * width : e1 * width * width], prod.reshape(-1))
+                np.add.at(data, scatter.chunk(e0, e1, positions), prod.reshape(-1))
         return self._csc(data) if out is None else out
 
     def _gradient(
         self, blocks: list[FloatArray], residuals: list[FloatArray], weights: list[FloatArray | None]
     ) -> FloatArray:
         """``Σ_e w_e A_eᵀ r_e`` scattered into a fresh ``g``."""
-        _, grad_vals, _ = self._workspaces()
+        _, grad_vals, _, _ = self._workspaces()
         g = np.zeros(self._n)
         for k, (a, r, w, f) in enumerate(zip(blocks, residuals, weights, self._factors, strict=True)):
             gs, width, step = self._grad_scatter[k], f.width, self._chunks[k]

@@ -61,6 +61,26 @@ def test_normal_equations_match_dense(graph, weighted):
     np.testing.assert_array_equal(old.toarray(), H.toarray())
 
 
+@pytest.mark.parametrize("dense", [False, True])
+def test_a_scatter_made_per_chunk_gives_the_same_h(monkeypatch, dense):
+    """Above WHOLE_SCATTER_BYTES a factor's positions in H are made chunk by chunk from its row
+    starts and slot offsets: the same positions in the same order, so the same H bit for bit."""
+    from manopt_lie.linalg import _factors, structure
+
+    rng = np.random.default_rng(5)
+    dims, factors = random_factor_graph(rng)
+    blocks, residuals, weights = random_values(rng, dims, factors)
+    whole = BlockStructure(dims, factors, dense=dense)
+    monkeypatch.setattr(_factors, "WHOLE_SCATTER_BYTES", 0)
+    monkeypatch.setattr(structure, "CHUNK", 64)  # several chunks per factor, the last one short
+    made = BlockStructure(dims, factors, dense=dense)
+    assert all(s.whole is not None for s in whole._hess_scatter)
+    assert all(s.whole is None for s in made._hess_scatter)
+    assert any(f.m > max(1, 64 // f.width**2) for f in made._factors)
+    for w in (None, weights):
+        np.testing.assert_array_equal(made.hessian(blocks, w).data, whole.hessian(blocks, w).data)
+
+
 def test_hessian_out_must_be_of_the_structure(graph):
     rng, dims, factors, S = graph
     blocks = random_values(rng, dims, factors)[0]
