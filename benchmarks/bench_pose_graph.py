@@ -57,6 +57,7 @@ data_dir = catalogue.default_data_dir
 def geodesic_runs(graph: PoseGraph, x0: Any, repeat: int) -> dict[str, dict[str, Any]]:
     """Ours and GTSAM's (when installed) in alternation, ``repeat`` rounds: per solver the
     median time, the iterations and the final geodesic cost (ours)."""
+
     def ours(make: Any) -> tuple[Any, float]:
         ANALYSES.clear()  # each run pays its own symbolic analysis, as GTSAM pays its ordering
         problem = graph.problem("geodesic")  # before the clock, as GTSAM's factor graph
