@@ -260,6 +260,7 @@ class _CHOLMOD:
         self._values = values_view(cvxopt, self._A, self._gather.size)  # where new values are written
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
+        self._symbolic = False  # whether factor_csc left the factor symbolic
         with _CHOLMOD_OPTIONS_LOCK:
             saved = dict(cholmod.options)
             # Options are module-global: set for this analysis only.
@@ -286,6 +287,11 @@ class _CHOLMOD:
             np.take(data, self._gather, out=self._values, mode="clip")
         else:
             self._A.V = self._cvxopt.matrix(np.take(data, self._gather))
+        self._numeric()
+
+    def _numeric(self) -> None:
+        """Factor the values in ``A`` (kept there, so :meth:`factor_csc` can have them factored again)."""
+        self._symbolic = False
         try:
             self._cholmod.numeric(self._A, self._factor)
         except ArithmeticError as err:
@@ -302,8 +308,18 @@ class _CHOLMOD:
             )
         self.pivots = None if (d == 1.0).all() else 1.0 / d
 
+    def factor_csc(self) -> tuple[FloatArray, IndexArray, IndexArray]:
+        """``(data, indices, indptr)`` of the last factorization's ``L`` (``LDLᵀ``: ``D`` on its
+        diagonal), in the factor's order. CVXOPT's ``getfactor`` leaves the factor symbolic and
+        simplicial: the next solve factors ``A``'s values again, an ``LDLᵀ`` from then on."""
+        colptr, rowind, values = self._cholmod.getfactor(self._factor).CCS
+        self._symbolic, self._supernodal = True, False
+        return np.asarray(values).reshape(-1), np.asarray(rowind).reshape(-1), np.asarray(colptr).reshape(-1)
+
     def solve(self, b: FloatArray) -> FloatArray:
         """``H⁻¹b`` for ``b`` of shape ``(n,)`` or ``(n, k)``."""
+        if self._symbolic:
+            self._numeric()
         b = np.asarray(b, dtype=np.float64)
         x = self._cvxopt.matrix(np.asfortranarray(b if self._coords is None else b[self._coords]))
         self._cholmod.solve(self._factor, x)

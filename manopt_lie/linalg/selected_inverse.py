@@ -102,31 +102,20 @@ class CholeskyFactor:
 
 def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     n = H.shape[0]
-    perm = impl.permutation()
-    direct = hasattr(impl, "factor_csc")  # CHOLMOD called directly: L read from a copy of the factor
-    numeric = [True]  # whether the backend's factor is numeric (CVXOPT's getfactor leaves it symbolic)
-
-    def solve(b: FloatArray) -> FloatArray:
-        if not numeric[0]:
-            impl.factorize(H.data)  # the analysis is kept
-            numeric[0] = True
-        return np.asarray(impl.solve(b), dtype=np.float64)
 
     def lower() -> sp.csc_matrix:
         pivots = impl.pivots
-        if direct:
-            values, rowind, colptr = impl.factor_csc()
-        else:  # ``getfactor`` leaves the factor symbolic (and simplicial): later solves refactorize
-            colptr, rowind, values = impl._cholmod.getfactor(impl._factor).CCS
-            numeric[0] = False
-        arrays = [np.asarray(a).reshape(-1) for a in (values, rowind, colptr)]
+        arrays = list(impl.factor_csc())  # (values, row indices, column pointers)
         if pivots is None:  # LLᵀ
             return sp.csc_matrix(tuple(arrays), shape=(n, n))
         # LDLᵀ, packed: D on the diagonal (the head of each sorted column), L₁ below it.
         arrays[0][arrays[2][:-1]] = 1.0
         return _scaled(sp.csc_matrix(tuple(arrays), shape=(n, n)), pivots, "CHOLMOD")
 
-    return CholeskyFactor(perm, "cholmod", lower, solve, exact=True)
+    def solve(b: FloatArray) -> FloatArray:
+        return np.asarray(impl.solve(b), dtype=np.float64)
+
+    return CholeskyFactor(impl.permutation(), "cholmod", lower, solve, exact=True)
 
 
 def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = True) -> sp.csc_matrix:

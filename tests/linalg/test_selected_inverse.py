@@ -41,6 +41,22 @@ def test_factor_and_solve(rng, backend):
     np.testing.assert_allclose(f.solve(B), np.linalg.solve(dense, B), rtol=1e-10, atol=1e-12)
 
 
+@pytest.mark.parametrize("interface", ["direct", "cvxopt"])
+def test_cholmod_factor_read_then_solved_through_either_interface(rng, monkeypatch, interface):
+    """Reading L leaves the factor as it was for the solves after it: the direct binding reads a
+    copy; CVXOPT's ``getfactor`` makes it symbolic, and the backend factors its values again."""
+    pytest.importorskip("cvxopt")
+    if interface == "cvxopt":
+        monkeypatch.setenv("MANOPT_LIE_CHOLMOD", "cvxopt")
+    H = random_spd(rng)
+    f = cholesky_factor(H, "cholmod")
+    dense, B = H.toarray(), rng.standard_normal((H.shape[0], 3))
+    for _ in range(2):  # L, then solves, then L again
+        np.testing.assert_allclose((f.L @ f.L.T).toarray(), dense[np.ix_(f.perm, f.perm)], atol=1e-10)
+        np.testing.assert_allclose(f.solve(B), np.linalg.solve(dense, B), rtol=1e-10, atol=1e-12)
+        f._L = None  # read L anew
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_selected_inverse_on_the_pattern(rng, backend):
     H = random_spd(rng)
