@@ -11,9 +11,10 @@ matrix that it makes anew at every factorization. Called directly:
   ordering followed by CHOLMOD's postorder;
 - the matrix factored is one triangle of ``B = P H Pᵀ`` in the factor's final order ``P``
   (:func:`~manopt_lie.linalg._triangles.permuted_block_triangle`, 32-bit indices), its values
-  gathered from ``H.data`` in place; the factor is then told that its ordering is the natural
-  one (its permutation the identity), and ``cholmod_factorize`` reads ``B`` as it is: the
-  lower triangle for supernodal ``LLᵀ``, the upper one for simplicial ``LDLᵀ``;
+  gathered from ``H.data`` at each factorization into an array released after it; the factor
+  is then told that its ordering is the natural one (its permutation the identity), and
+  ``cholmod_factorize`` reads ``B`` as it is: the lower triangle for supernodal ``LLᵀ``, the
+  upper one for simplicial ``LDLᵀ``;
 - solves permute the right-hand sides (``b[P]``) and the solutions back.
 
 Against CVXOPT's interface (parking-garage, this machine): the analysis 10 → 4.6 ms, each
@@ -41,9 +42,9 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ._backends import _CHOLMOD, supernodal_setting
-from ._factors import exclusive_cumsum
+from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
-from ._triangles import check_diagonal, columns, permuted_block_triangle, ranges
+from ._triangles import check_diagonal, columns, permuted_block_triangle
 from .errors import SingularSystemError
 
 __all__ = ["Cholmod", "available", "cholmod_backend"]
@@ -225,8 +226,7 @@ def _block_order(perm: NDArray[np.intp], dims: IndexArray) -> NDArray[np.intp] |
     order = variable[perm == offsets[:-1][variable]]
     if order.size != dims.size:
         return None
-    expected = np.repeat(offsets[:-1][order], dims[order]) + ranges(dims[order].astype(np.intp))
-    return order if np.array_equal(perm, expected) else None
+    return order if np.array_equal(perm, coordinates(offsets, dims, order)) else None
 
 
 def _permuted_triangle(

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["FactorIndex", "HessianScatter", "check_factor", "exclusive_cumsum", "index_dtype", "same_buffer"]
+__all__ = ["FactorIndex", "HessianScatter", "check_factor", "coordinates", "exclusive_cumsum", "index_dtype"]
+__all__ += ["same_buffer"]
 
 IntArray = NDArray[np.intp]
 
@@ -35,6 +36,13 @@ def exclusive_cumsum(a: IntArray) -> IntArray:
     out = np.zeros(a.size + 1, dtype=np.intp)
     np.cumsum(a, out=out[1:])
     return out
+
+
+def coordinates(offsets: IntArray, dims: IntArray, variables: IntArray) -> IntArray:
+    """The coordinates ``o_v … o_v + d_v − 1`` of every variable ``v`` of ``variables``, in that
+    order, concatenated (``offsets``: ``[0, cumsum(dims)]``)."""
+    d = dims[variables]
+    return np.repeat(offsets[variables] - exclusive_cumsum(d)[:-1], d) + np.arange(int(d.sum()))
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from ._factors import exclusive_cumsum
 
 __all__ = ["CHUNK", "check_diagonal", "columns", "coordinate_major_triangle", "permuted_block_triangle", "triangle"]
-__all__ += ["ranges", "values_view"]
+__all__ += ["values_view"]
 
 IndexArray = NDArray[np.signedinteger]
 Blocks = slice | NDArray[np.intp]  # the stored blocks in a coordinate pair's matrix (a slice: all)

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._analyses import digest
-from ._factors import FactorIndex, HessianScatter, check_factor, exclusive_cumsum, index_dtype, same_buffer
+from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
 
 __all__ = ["BlockStructure"]
 
@@ -137,9 +137,8 @@ class BlockStructure:
                 (c * f.width**2, c * f.width, c * f.residual_dim * f.width)
                 for c, f in zip(self._chunks, self._factors, strict=True)
             ]
-            made = [(c * s.width**2, s.dtype) for c, s in zip(self._chunks, self._hess_scatter, strict=True)
-                    if s.whole is None]  # fmt: skip
-            positions = np.empty(max((n for n, _ in made), default=0), dtype=made[0][1] if made else np.int32)
+            made = [c * s.width**2 for c, s in zip(self._chunks, self._hess_scatter, strict=True) if s.whole is None]
+            positions = np.empty(max(made, default=0), dtype=self._hess_scatter[0].dtype)  # one index dtype for all
             work = (np.empty(max(h for h, _, _ in sizes)), np.empty(max(g for _, g, _ in sizes)),
                     np.empty(max(w for _, _, w in sizes)), positions)  # fmt: skip
             self._local.work = work
@@ -182,8 +181,7 @@ class BlockStructure:
         # Each column of variable b lists the rows of b's blocks in order: the
         # "row stream" segment of b, repeated d_b times. The nnz-sized arrays are built in
         # the index dtype, one at a time (their memory is the structure's peak).
-        row_stream = np.repeat(self.offsets[brow] - exclusive_cumsum(dims[brow])[:-1], dims[brow])
-        row_stream += np.arange(row_stream.size)
+        row_stream = coordinates(self.offsets, dims, brow)
         per_col = col_len[var_of_col]
         gather = np.repeat((stream_start[var_of_col] - indptr[:-1]).astype(itype), per_col)
         gather += np.arange(nnz, dtype=itype)
@@ -324,9 +322,7 @@ class BlockStructure:
             nv = self.dims.size
             pattern = spmatrix(1.0, matrix(rows[lower].astype(np.int64)), matrix(cols[lower]), (nv, nv))
             order = np.asarray(amd.order(pattern, "L"), dtype=np.intp).reshape(-1)
-            dims = self.dims[order]
-            start = np.repeat(self.offsets[order] - exclusive_cumsum(dims)[:-1], dims)
-            self._ordering = start + np.arange(self._n)
+            self._ordering = coordinates(self.offsets, self.dims, order)
         return self._ordering
 
     def pattern_digest(self) -> bytes:
