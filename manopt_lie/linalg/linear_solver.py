@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .cholesky import CholeskySolver
+from .fill import AutoSolver
 from .pcg import PCGSolver
 
 if TYPE_CHECKING:
@@ -52,7 +53,7 @@ class LinearSolver(Protocol):
     * ``stats``: numbers about the last call (``str → float``), recorded in the
       optimizer's history (empty for a direct solver).
 
-    :class:`CholeskySolver` and :class:`PCGSolver` implement it.
+    :class:`CholeskySolver`, :class:`PCGSolver` and :class:`AutoSolver` implement it.
     """
 
     def bind(self, structure: BlockStructure) -> LinearSolver:
@@ -68,10 +69,11 @@ class LinearSolver(Protocol):
 
 
 LINEAR_SOLVERS: dict[str, Callable[[], LinearSolver]] = {
-    "cholesky": CholeskySolver,  # sparse Cholesky, symbolic analysis reused (the default)
+    "auto": AutoSolver,  # Cholesky, or PCG first where the factor would be nearly dense (the default)
+    "cholesky": CholeskySolver,  # sparse Cholesky, symbolic analysis reused
     "pcg": PCGSolver,  # conjugate gradients preconditioned by the variables' diagonal blocks
 }
-"""The linear solvers by name, as ``linear_solver="cholesky" | "pcg"`` selects them in
+"""The linear solvers by name, as ``linear_solver="auto" | "cholesky" | "pcg"`` selects them in
 ``GaussNewton``/``LevenbergMarquardt`` (see :func:`get_linear_solver`)."""
 
 
@@ -80,9 +82,9 @@ def get_linear_solver(spec: str | LinearSolver | None = None) -> LinearSolver:
 
     Parameters
     ----------
-    spec : {"cholesky", "pcg"}, LinearSolver or None
+    spec : {"auto", "cholesky", "pcg"}, LinearSolver or None
         A name of :data:`LINEAR_SOLVERS` (with its default settings), an
-        instance used as the template, or ``None`` for ``"cholesky"``.
+        instance used as the template, or ``None`` for ``"auto"``.
 
     Raises
     ------
@@ -92,7 +94,7 @@ def get_linear_solver(spec: str | LinearSolver | None = None) -> LinearSolver:
         If ``spec`` is neither a name nor a :class:`LinearSolver`.
     """
     if spec is None:
-        spec = "cholesky"
+        spec = "auto"
     if isinstance(spec, str):
         if spec not in LINEAR_SOLVERS:
             raise ValueError(f"unknown linear solver {spec!r}; choose from {', '.join(LINEAR_SOLVERS)}")

@@ -81,11 +81,12 @@ class NonlinearLeastSquares(Optimizer):
 
     Parameters
     ----------
-    linear_solver : {"cholesky", "pcg"}, LinearSolver or None
+    linear_solver : {"auto", "cholesky", "pcg"}, LinearSolver or None
         How the normal equations are solved: a name of
         :data:`~manopt_lie.linalg.LINEAR_SOLVERS`, or a
         :class:`~manopt_lie.linalg.LinearSolver` used as a template (e.g.
-        ``PCGSolver(tol=1e-8)``); ``None`` is ``"cholesky"``. Each run binds a
+        ``PCGSolver(tol=1e-8)``); ``None`` is ``"auto"``: Cholesky, or PCG first where the
+        factor would be nearly dense (:class:`~manopt_lie.linalg.AutoSolver`). Each run binds a
         fresh solver to the problem's structure, so ``solve`` is reentrant. An
         iterative solver's numbers (``linear_iterations``, ``linear_residual``,
         ``linear_converged``) go to the history's extras.

@@ -11,7 +11,10 @@ current point:
 * ``"block-jacobi"``: ``P = blkdiag(G_vv)⁻¹``, the inverse of each variable's
   diagonal block: no fill-in, for graphs whose factor is dense;
 * ``"identity"``: no preconditioning;
-* ``"auto"``: ``"gauss-newton"`` for a least-squares problem, ``"identity"`` otherwise.
+* ``"auto"``: for a least-squares problem ``"gauss-newton"``, or ``"block-jacobi"`` where the
+  factor of ``G`` would be nearly dense (:func:`~manopt_lie.linalg.fill.prefers_iterative`:
+  rotation averaging on a well-connected graph, where one factorization costs a second and
+  the trust region converges as fast without it); ``"identity"`` otherwise.
 
 The per-point state (the factorization and the point it belongs to) lives in
 the object :func:`bind_preconditioner` makes for one run, never in the
@@ -29,6 +32,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ..linalg import CholeskySolver, block_jacobi
+from ..linalg.fill import prefers_iterative
 from ._values import same_point, snapshot
 from .least_squares_problem import LeastSquaresProblem
 from .problem import Problem
@@ -40,7 +44,8 @@ Preconditioner = Callable[[Any, Any], Any]
 vector ``v`` mapped by a symmetric positive definite approximation of the inverse Hessian."""
 PRECONDITIONERS = ("auto", "gauss-newton", "block-jacobi", "identity")
 """The preconditioners ``TrustRegion(preconditioner=…)`` accepts by name; ``"auto"`` picks
-Gauss-Newton (a Cholesky factor of ``JᵀJ``) on least-squares problems, identity otherwise."""
+Gauss-Newton (a Cholesky factor of ``JᵀJ``) on least-squares problems — block-Jacobi where
+that factor would be nearly dense — and identity otherwise."""
 _NEED_LEAST_SQUARES = ("gauss-newton", "block-jacobi")
 
 
@@ -79,7 +84,9 @@ def bind_preconditioner(
     if not isinstance(spec, str):
         return spec
     if spec == "auto":
-        spec = "gauss-newton" if isinstance(problem, LeastSquaresProblem) else "identity"
+        if isinstance(problem, LeastSquaresProblem):
+            return _Auto(problem)
+        spec = "identity"
     if spec == "identity":
         return None
     if not isinstance(problem, LeastSquaresProblem):
@@ -144,3 +151,21 @@ class _BlockJacobi(_PerPoint):
 
     def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.asarray(self._M @ r, dtype=np.float64)
+
+
+class _Auto(_PerPoint):
+    """:class:`_GaussNewton`, or :class:`_BlockJacobi` where the structure's factor would be
+    nearly dense: chosen at the first build (the structure exists once ``x`` is linearized)."""
+
+    _chosen: _PerPoint | None = None
+
+    def _build(self, G: sp.csc_matrix) -> None:
+        if self._chosen is None:
+            structure = self._problem.structure
+            dense_factor = structure is not None and prefers_iterative(structure)
+            self._chosen = (_BlockJacobi if dense_factor else _GaussNewton)(self._problem)
+        self._chosen._build(G)
+
+    def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        assert self._chosen is not None
+        return self._chosen._apply(r)

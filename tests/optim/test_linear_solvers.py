@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from manopt_lie import SE2, SE3
-from manopt_lie.linalg import CholeskySolver, LinearSolver, PCGSolver, get_linear_solver
+from manopt_lie.linalg import AutoSolver, CholeskySolver, LinearSolver, PCGSolver, get_linear_solver
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt, Status
 
 from .helpers import pose_chain
@@ -110,12 +110,12 @@ def test_custom_solver_templates_are_bound_per_run():
 
 
 def test_linear_solver_names_and_errors():
-    assert isinstance(get_linear_solver(None), CholeskySolver)
+    assert isinstance(get_linear_solver(None), AutoSolver)
     assert isinstance(get_linear_solver("cholesky"), CholeskySolver)
     assert isinstance(get_linear_solver("pcg"), PCGSolver)
     template = PCGSolver(tol=1e-9)
     assert GaussNewton(linear_solver=template).linear_solver is template
-    with pytest.raises(ValueError, match="unknown linear solver 'lu'; choose from cholesky, pcg"):
+    with pytest.raises(ValueError, match="unknown linear solver 'lu'; choose from auto, cholesky, pcg"):
         GaussNewton(linear_solver="lu")
     with pytest.raises(TypeError, match="bind"):
         LevenbergMarquardt(linear_solver=lambda H, b: b)
@@ -124,3 +124,34 @@ def test_linear_solver_names_and_errors():
     for bad in ({"tol": 0.0}, {"tol": 1.5}, {"maxiter": 0}, {"preconditioner": "ilu"}):
         with pytest.raises(ValueError):
             PCGSolver(**bad)
+
+
+def test_the_default_solver_takes_pcg_where_the_factor_would_be_dense():
+    """Rotation averaging on a random graph of 700 rotations (degree 8): the factor is predicted
+    dense, so LM, GN and dogleg solve by PCG (its numbers in the history) and reach Cholesky's
+    optimum; the trust region preconditions by the diagonal blocks instead of a factorization."""
+    from manopt_lie.linalg import factor_cost
+    from manopt_lie.optim import Dogleg, TrustRegion
+    from manopt_lie.optim.preconditioners import _Auto, _BlockJacobi, bind_preconditioner
+    from manopt_lie.problems.synthetic import rotation_averaging
+
+    graph = rotation_averaging(700, degree=8, seed=0).graph
+    x0 = graph.chordal_initialization()
+    direct = LevenbergMarquardt(linear_solver="cholesky").solve(graph.problem("chordal"), x0)
+    for make in (LevenbergMarquardt, GaussNewton, Dogleg):
+        problem = graph.problem("chordal")
+        res = make().solve(problem, x0)
+        if factor_cost(problem.structure) is None:  # no prediction without CHOLMOD called directly
+            assert "linear_iterations" not in res.history.extra
+            continue
+        assert res.success and res.fun == pytest.approx(direct.fun, rel=1e-9)
+        assert np.all(res.history.extra["linear_iterations"][1:] >= 1)
+        assert np.all(res.history.extra["linear_converged"][1:] == 1.0)
+    problem = graph.problem("chordal")
+    res = TrustRegion().solve(problem, x0)
+    assert res.success and res.fun == pytest.approx(direct.fun, rel=1e-7)
+    precon = bind_preconditioner("auto", problem)
+    assert isinstance(precon, _Auto)
+    precon(x0, np.zeros(problem.manifold.zero_vector(x0).shape))
+    if factor_cost(problem.structure) is not None:
+        assert isinstance(precon._chosen, _BlockJacobi)
