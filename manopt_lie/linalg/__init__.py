@@ -4,8 +4,8 @@
 the fixed sparsity of ``J``, ``H = JᵀWJ`` and ``g = JᵀWr``, computed once;
 :class:`CholeskySolver` solves ``H δ = −g`` reusing its symbolic analysis;
 :class:`PCGSolver` (over :func:`pcg_solve`) is the iterative alternative for
-systems whose factor fills in; :class:`AutoSolver` chooses between them by the fill
-:func:`factor_cost` predicts. All are :class:`LinearSolver`\\ s, the protocol the
+systems whose factor fills in; :class:`AutoSolver` chooses between them by the fill the
+analysis predicts (:attr:`CholeskySolver.factor_cost`). All are :class:`LinearSolver`\\ s, the protocol the
 least-squares optimizers take (``linear_solver="auto"``, ``"cholesky"`` or ``"pcg"``)::
 
     structure = BlockStructure(dims, [(odometry_ids, 6), (loop_ids, 6)])
@@ -15,9 +15,9 @@ least-squares optimizers take (``linear_solver="auto"``, ``"cholesky"`` or ``"pc
 """
 
 from ._backends import DENSE_MAX
-from .cholesky import CholeskySolver
+from .cholesky import CholeskySolver, FactorCost
 from .errors import SingularSystemError
-from .fill import AutoSolver, FactorCost, factor_cost
+from .fill import AutoSolver
 from .linear_solver import LINEAR_SOLVERS, LinearSolver, get_linear_solver
 from .pcg import PCGResult, PCGSolver, block_jacobi, pcg_solve
 from .selected_inverse import CholeskyFactor, SelectedInverse, Supernodes, cholesky_factor
@@ -30,7 +30,6 @@ __all__ = [
     "PCGSolver",
     "AutoSolver",
     "FactorCost",
-    "factor_cost",
     "LinearSolver",
     "LINEAR_SOLVERS",
     "get_linear_solver",

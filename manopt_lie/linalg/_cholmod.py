@@ -209,48 +209,16 @@ def available() -> bool:
 
 
 def cholmod_backend(
-    indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
-    supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
+    indptr: IndexArray,
+    indices: IndexArray,
+    ordering: NDArray[np.intp] | None = None,
+    supernodal: bool | None = None,
+    blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
 ) -> Cholmod | _CHOLMOD:
     """CHOLMOD's factorization of the pattern, called directly where it can be, else through CVXOPT."""
     if indptr.dtype == np.int32 and indices.dtype == np.int32 and available():
         return Cholmod(indptr, indices, ordering, supernodal, blocks)
     return _CHOLMOD(indptr, indices, ordering, supernodal, blocks)
-
-
-def block_column_counts(
-    block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp]
-) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
-    """The column counts of the Cholesky factor of a symmetric block pattern (the variables'
-    graph, both triangles, CSC) eliminated in ``order``: ``(variables, counts)``, the variables
-    in the factor's order (``order`` postordered) and the number of blocks in each one's column
-    of ``L``, its diagonal block included. ``None`` where CHOLMOD is not called directly.
-
-    CHOLMOD's symbolic analysis of the ``n_vars``-vertex graph (its elimination tree and
-    column counts), not of ``H``'s ``d²`` times more entries: parking-garage 0.2 ms."""
-    lib = _library() if available() else None
-    if lib is None:
-        return None
-    nv = block_indptr.size - 1
-    indptr32, rows32 = np.asarray(block_indptr, dtype=np.int32), np.asarray(block_rows, dtype=np.int32)
-    given = np.ascontiguousarray(order, dtype=np.int32)
-    common = ctypes.create_string_buffer(_COMMON_BYTES)
-    if not lib.cholmod_start(common):
-        return None
-    settings = _Common.from_buffer(common)
-    settings.print, settings.nmethods, settings.supernodal = 0, 1, 0  # the given order; no supernodes needed
-    pattern = _Sparse(nv, nv, rows32.size, indptr32.ctypes.data, rows32.ctypes.data, None, None, None,
-                      -1, _INT, _PATTERN, _DOUBLE, 1, 1)  # fmt: skip
-    handle = c_void_p(ctypes.cast(lib.cholmod_analyze_p(byref(pattern), given.ctypes.data, None, 0, common),
-                                  c_void_p).value)  # fmt: skip
-    try:
-        if not handle.value:
-            return None
-        factor = _Factor.from_address(handle.value)
-        variables = _array(factor.Perm, np.int32, nv).astype(np.intp)
-        return variables, _array(factor.ColCount, np.int32, nv).astype(np.intp)
-    finally:
-        _release(lib, common, handle)
 
 
 def _block_order(perm: NDArray[np.intp], dims: IndexArray) -> NDArray[np.intp] | None:
@@ -290,9 +258,14 @@ class Cholmod:
     """
 
     def __init__(
-        self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
-        supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
-        *, lib: Any = None,
+        self,
+        indptr: IndexArray,
+        indices: IndexArray,
+        ordering: NDArray[np.intp] | None = None,
+        supernodal: bool | None = None,
+        blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
+        *,
+        lib: Any = None,
     ) -> None:
         lib = lib if lib is not None else _library()
         if lib is None:
@@ -324,6 +297,10 @@ class Cholmod:
         factor = self._factor()
         if factor.n != n or factor.itype != _INT or factor.xtype != _PATTERN:
             raise RuntimeError(f"CHOLMOD analysis failed (status {common.status})")
+        method = common.method[common.selected]
+        self.cost = (float(method.lnz), float(method.fl))
+        """``(Σ_j c_j, Σ_j c_j²)`` of the factor's column counts ``c_j``: its entries and CHOLMOD's
+        flop count of a factorization, from the analysis."""
         # P: the factor's final order (the ordering, postordered); from now on CHOLMOD's is the natural one.
         cholmod_perm = _array(factor.Perm, np.int32, n)
         self._perm = cholmod_perm.astype(np.intp)

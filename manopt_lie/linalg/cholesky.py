@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Mapping
+from dataclasses import dataclass
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -22,7 +23,7 @@ from .errors import SingularSystemError
 if TYPE_CHECKING:
     from .structure import BlockStructure
 
-__all__ = ["CholeskySolver"]
+__all__ = ["CholeskySolver", "FactorCost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -33,6 +34,22 @@ def _check_square(H: Any) -> sp.csc_matrix:
     if not sp.issparse(H) or H.ndim != 2 or H.shape[0] != H.shape[1]:
         raise ValueError(f"H must be a square scipy.sparse matrix, got {type(H).__name__} {getattr(H, 'shape', '')}")
     return H if H.format == "csc" else H.tocsc()
+
+
+@dataclass(frozen=True)
+class FactorCost:
+    """The size of a Cholesky factor ``L`` and the cost of computing it, from a symbolic analysis.
+
+    Attributes
+    ----------
+    nnz : float
+        ``Σ_j c_j``, ``c_j`` the count of column ``j`` of ``L`` (its diagonal included).
+    flops : float
+        ``Σ_j c_j²``: CHOLMOD's flop count of a factorization.
+    """
+
+    nnz: float
+    flops: float
 
 
 SUPERNODE_DIM = 6
@@ -209,6 +226,13 @@ class CholeskySolver:
         self._probe = np.random.default_rng(0).standard_normal(H.shape[0])
         self._H = None
         self.n_analyses += 1
+
+    @property
+    def factor_cost(self) -> FactorCost | None:
+        """The analysed pattern's factor size and flops (CHOLMOD's analysis called directly;
+        ``None`` before :meth:`analyze` and for the other backends)."""
+        cost = getattr(self._impl, "cost", None)
+        return None if cost is None else FactorCost(*cost)
 
     def _own_backend(self) -> Backend:
         """The analysed (and factorized) backend, kept by the caller: it is never lent to the

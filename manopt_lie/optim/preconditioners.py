@@ -12,7 +12,8 @@ current point:
   diagonal block: no fill-in, for graphs whose factor is dense;
 * ``"identity"``: no preconditioning;
 * ``"auto"``: for a least-squares problem ``"gauss-newton"``, or ``"block-jacobi"`` where the
-  factor of ``G`` would be nearly dense (:func:`~manopt_lie.linalg.fill.prefers_iterative`:
+  factor of ``G`` would be nearly dense (as its analysis predicts,
+  :func:`~manopt_lie.linalg.fill.prefers_iterative`:
   rotation averaging on a well-connected graph, where one factorization costs a second and
   the trust region converges as fast without it); ``"identity"`` otherwise.
 
@@ -128,12 +129,16 @@ class _GaussNewton(_PerPoint):
         super().__init__(problem)
         self._solver = CholeskySolver()
 
-    def _build(self, G: sp.csc_matrix) -> None:
+    def _analyze(self, G: sp.csc_matrix) -> CholeskySolver:
+        """The solver, its analysis of ``G``'s pattern done (once per run)."""
         if self._solver.n_analyses == 0 and self._problem.structure is not None:
             self._solver = self._solver.bind(self._problem.structure)  # its pattern needs no symmetry check
         if not self._solver.matches(G):
             self._solver.analyze(G)
-        self._solver.factorize(G)
+        return self._solver
+
+    def _build(self, G: sp.csc_matrix) -> None:
+        self._analyze(G).factorize(G)
 
     def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
         return self._solver.solve(r)
@@ -154,16 +159,16 @@ class _BlockJacobi(_PerPoint):
 
 
 class _Auto(_PerPoint):
-    """:class:`_GaussNewton`, or :class:`_BlockJacobi` where the structure's factor would be
-    nearly dense: chosen at the first build (the structure exists once ``x`` is linearized)."""
+    """:class:`_GaussNewton`, or :class:`_BlockJacobi` where the analysis of ``G`` predicts a
+    nearly dense factor: chosen at the first build."""
 
     _chosen: _PerPoint | None = None
 
     def _build(self, G: sp.csc_matrix) -> None:
         if self._chosen is None:
-            structure = self._problem.structure
-            dense_factor = structure is not None and prefers_iterative(structure)
-            self._chosen = (_BlockJacobi if dense_factor else _GaussNewton)(self._problem)
+            gauss_newton = _GaussNewton(self._problem)
+            cost = gauss_newton._analyze(G).factor_cost
+            self._chosen = _BlockJacobi(self._problem) if prefers_iterative(cost, G.nnz) else gauss_newton
         self._chosen._build(G)
 
     def _apply(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
