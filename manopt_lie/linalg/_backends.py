@@ -234,12 +234,8 @@ class _CHOLMOD:
     """
 
     def __init__(
-        self,
-        indptr: IndexArray,
-        indices: IndexArray,
-        ordering: NDArray[np.intp] | None = None,
-        supernodal: bool | None = None,
-        blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
+        self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
+        supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
     ) -> None:
         import cvxopt
         from cvxopt import cholmod

@@ -209,11 +209,8 @@ def available() -> bool:
 
 
 def cholmod_backend(
-    indptr: IndexArray,
-    indices: IndexArray,
-    ordering: NDArray[np.intp] | None = None,
-    supernodal: bool | None = None,
-    blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
+    indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
+    supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
 ) -> Cholmod | _CHOLMOD:
     """CHOLMOD's factorization of the pattern, called directly where it can be, else through CVXOPT."""
     if indptr.dtype == np.int32 and indices.dtype == np.int32 and available():
@@ -258,14 +255,9 @@ class Cholmod:
     """
 
     def __init__(
-        self,
-        indptr: IndexArray,
-        indices: IndexArray,
-        ordering: NDArray[np.intp] | None = None,
-        supernodal: bool | None = None,
-        blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
-        *,
-        lib: Any = None,
+        self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
+        supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
+        *, lib: Any = None,
     ) -> None:
         lib = lib if lib is not None else _library()
         if lib is None:

@@ -113,11 +113,7 @@ def _block_starts(
 
 
 def coordinate_major_triangle(
-    cvxopt: Any,
-    indptr: IndexArray,
-    dims: IndexArray,
-    block_indptr: IndexArray,
-    block_rows: IndexArray,
+    cvxopt: Any, indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray,
     upper: bool = False,
 ) -> tuple[Any, NDArray[np.signedinteger], NDArray[np.intp]]:
     """The lower (``upper``: the upper) triangle of ``P H Pᵀ`` in the coordinate-major order ``P``, the position in
@@ -191,11 +187,7 @@ def ranges(counts: NDArray[np.intp]) -> NDArray[np.intp]:
 
 
 def permuted_block_triangle(
-    indptr: IndexArray,
-    dims: IndexArray,
-    block_indptr: IndexArray,
-    block_rows: IndexArray,
-    order: NDArray[np.intp],
+    indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp],
     upper: bool = False,
 ) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.signedinteger]]:
     """The lower (``upper``: the upper) triangle of ``B = P H Pᵀ``, ``P`` the permutation that

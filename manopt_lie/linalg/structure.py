@@ -417,10 +417,7 @@ class BlockStructure:
         return self._hessian(blocks_, weights_), self._gradient(blocks_, self._check_residuals(residuals), weights_)
 
     def hessian(
-        self,
-        blocks: Sequence[ArrayLike],
-        weights: Sequence[ArrayLike | None] | None = None,
-        *,
+        self, blocks: Sequence[ArrayLike], weights: Sequence[ArrayLike | None] | None = None, *,
         out: sp.csc_matrix | None = None,
     ) -> sp.csc_matrix:
         """``H = JᵀWJ`` alone (see :meth:`normal_equations`): a fresh matrix of the fixed pattern,
