@@ -85,7 +85,7 @@ class AutoSolver:
     """
 
     def __init__(self, *, tol: float = 1e-6) -> None:
-        self.tol = tol
+        self.tol = PCGSolver(tol=tol).tol  # checked now (ValueError), not at the first PCG solve
         self._structure: BlockStructure | None = None
         self._direct: CholeskySolver | None = None
         self._iterative: PCGSolver | None = None

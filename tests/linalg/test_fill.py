@@ -126,3 +126,9 @@ def test_an_unbound_auto_solver_refuses_to_solve():
     H, g = structure.normal_equations(blocks, residuals)
     with pytest.raises(RuntimeError, match="bind"):
         AutoSolver()(H, g)
+
+
+@pytest.mark.parametrize("tol", [0.0, 1.5])
+def test_a_bad_tolerance_is_refused_at_construction(tol):
+    with pytest.raises(ValueError, match="tol"):
+        AutoSolver(tol=tol)
