@@ -420,11 +420,13 @@ class LeastSquaresProblem(Problem):
         structure = self._structure or self._build_structure(residuals)
         # Plain least squares weighs every edge by 1: the assembly skips the product.
         scaling = [None if type(f.robust_loss) is Trivial else w for f, w in zip(self._factors, weights, strict=True)]
-        g = structure.gradient(blocks, residuals, scaling)
+        # The structure's unchecked assembly: _evaluate checked every shape, and out (a recycled
+        # H) is one of this structure's (a small system's linearization is mostly such checks).
+        g = structure._gradient(blocks, residuals, scaling)
         fixed = self._fixed_coordinates
 
         def hessian(out: scipy.sparse.csc_matrix | None = None) -> scipy.sparse.csc_matrix:
-            h = structure.hessian(blocks, scaling, out=out)
+            h = structure._hessian(blocks, scaling, out)
             if fixed.size:  # H is its own (fresh or recycled): 1 on the fixed variables' diagonal, in place
                 h.data[structure.diagonal_positions[fixed]] += 1.0
             return h
