@@ -328,7 +328,7 @@ class CholeskySolver:
         rhs = np.empty((n, 2), order="F")
         rhs[:, 0], rhs[:, 1] = self._probe, b_
         x = impl.solve(rhs)
-        finite = np.isfinite(x).all(axis=0)
+        finite = np.isfinite(x).all(axis=0).tolist()
         residual = impl.matrix @ x
         residual -= rhs
         # Per column: ‖Hx − b‖², ‖b‖² and bᵀx.
