@@ -328,13 +328,12 @@ class CholeskySolver:
         rhs = np.empty((n, 2), order="F")
         rhs[:, 0], rhs[:, 1] = self._probe, b_
         x = impl.solve(rhs)
-        finite = np.isfinite(x).all(axis=0).tolist()
         residual = impl.matrix @ x
         residual -= rhs
         # Per column: ‖Hx − b‖², ‖b‖² and bᵀx.
         r2, b2, curvature = (np.einsum("ij,ij->j", u, v) for u, v in ((residual, residual), (rhs, rhs), (rhs, x)))
         for j, what in enumerate(("the probe solve H⁻¹z after factorization", "the solution of H x = b")):
-            if not finite[j]:
+            if not np.isfinite(x[:, j]).all():
                 raise SingularSystemError(f"{what} is not finite")
             self._check_numbers(float(np.sqrt(r2[j])), float(np.sqrt(b2[j])), float(curvature[j]), what)
         self._H = impl.matrix
