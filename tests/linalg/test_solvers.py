@@ -117,6 +117,15 @@ def test_phases_can_be_called_separately(solver, system):
         solver.solve(g[:-1])
 
 
+def test_a_call_leaves_the_factorization_for_more_solves(solver, system):
+    """``solver(H, b)`` (the dense backend: factorization, probe and ``b`` in one pass) keeps its
+    factorization: ``solve`` applies it to other right-hand sides."""
+    _, _, _, H, g = system
+    x = solver(H, g)
+    np.testing.assert_allclose(H @ x, g, rtol=0, atol=1e-8 * np.linalg.norm(g))
+    np.testing.assert_allclose(solver.solve(-3 * g), -3 * x, rtol=1e-12, atol=0)
+
+
 @pytest.mark.parametrize("d", [3, 6])
 def test_unanchored_pose_graph_is_singular(solver, rng, d):
     S, blocks, residuals = pose_graph(rng, n_poses=40, d=d, anchor=False)
