@@ -57,7 +57,8 @@ def print_table(runs: Sequence[Run], *, title: str | None = None, console: Any =
 
     table_rows = rows(runs)
     keep = columns(table_rows)
-    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False)
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False,
+                  collapse_padding=True)  # two spaces between columns: a 100-column terminal holds the demo
     for k in keep:
         table.add_column(HEADER[k], justify="right" if HEADER[k] in _RIGHT else "left")
     previous = None
