@@ -38,7 +38,7 @@ from ._values import same_point, snapshot
 from .least_squares_problem import LeastSquaresProblem
 from .problem import Problem
 
-__all__ = ["PRECONDITIONERS", "Preconditioner", "bind_preconditioner", "check_preconditioner"]
+__all__ = ["PRECONDITIONERS", "Preconditioner", "bind_preconditioner", "check_preconditioner", "from_gauss_newton"]
 
 Preconditioner = Callable[[Any, Any], Any]
 """A preconditioner given as a function ``(x, v) -> P⁻¹v``: at the point ``x``, a tangent
@@ -97,6 +97,12 @@ def bind_preconditioner(
             "or a callable (x, r) -> z"
         )
     return _GaussNewton(problem) if spec == "gauss-newton" else _BlockJacobi(problem)
+
+
+def from_gauss_newton(preconditioner: Preconditioner | None) -> bool:
+    """Whether a preconditioner bound by :func:`bind_preconditioner` is built from ``G = JᵀWJ``
+    (Gauss-Newton or block-Jacobi): its norm ``√(ηᵀP⁻¹η)`` is then in units of the cost's square root."""
+    return isinstance(preconditioner, _PerPoint)
 
 
 class _PerPoint(ABC):

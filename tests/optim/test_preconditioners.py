@@ -7,7 +7,9 @@ import pytest
 
 from manopt_lie import SE2, SE3
 from manopt_lie.manifolds import Sphere
-from manopt_lie.optim import PRECONDITIONERS, LeastSquaresProblem, Problem, Status, TrustRegion
+from manopt_lie.optim import PRECONDITIONERS, LeastSquaresProblem, LevenbergMarquardt, Problem, Status, TrustRegion
+from manopt_lie.optim.trust_region import default_max_radius
+from manopt_lie.problems.synthetic.landmarks import landmark_world
 
 from .helpers import pose_chain
 
@@ -32,6 +34,35 @@ def test_a_better_preconditioner_needs_fewer_inner_iterations():
     # Gauss-Newton model + its own inverse as preconditioner: tCG is exact in one step.
     auto = TrustRegion().solve(problem, x0).history.extra["inner_iterations"][1:]
     assert np.all(auto == 1)
+
+
+def test_the_default_radius_is_in_the_units_of_the_gauss_newton_norm():
+    """With a preconditioner built from ``G = JᵀWJ`` the region's norm is in √cost units: the
+    default ``Δ̄`` is at least ``√(2 f(x₀))``, which no Gauss-Newton step exceeds; without one it
+    stays ``typical_dist``, as does a zero or non-finite cost."""
+    assert default_max_radius(80.0, 1.8e8, True) == pytest.approx(np.sqrt(3.6e8))
+    assert default_max_radius(80.0, 10.0, True) == 80.0
+    assert default_max_radius(80.0, 1.8e8, False) == 80.0
+    assert default_max_radius(80.0, 0.0, True) == default_max_radius(80.0, np.inf, True) == 80.0
+    problem, _, x0 = pose_chain(SE2, n=20, closures=5, noise=0.05)
+    lin = problem.linearize(x0)
+    gauss_newton = -np.linalg.solve(lin.hessian.toarray(), lin.grad.reshape(-1))
+    assert -lin.grad.reshape(-1) @ gauss_newton <= 2 * lin.cost  # ‖η‖²_G = 2(m(0) − m(η)) ≤ 2f
+
+
+def test_far_from_the_solution_the_gauss_newton_norm_needs_few_steps():
+    """A landmark world started far from its optimum in distance (landmarks from the chordal
+    poses): the first Gauss-Newton step is 16 typical distances long in the norm of ``G``. With the
+    radius of that norm the trust region takes as few steps as Levenberg-Marquardt's (20 with
+    a distance-sized ``Δ̄``), to the same optimum."""
+    world = landmark_world(200, 50, seed=0).graph
+    problem, x0 = world.problem("geodesic"), world.initialize("chordal", seed=0)
+    lm = LevenbergMarquardt().solve(problem, x0)
+    tr = TrustRegion().solve(problem, x0)
+    assert tr.status.converged and tr.nit <= lm.nit + 3, (tr.nit, lm.nit)
+    assert tr.fun == pytest.approx(lm.fun, rel=1e-6)
+    capped = TrustRegion(max_radius=problem.manifold.typical_dist).solve(problem, x0)
+    assert capped.nit >= 3 * tr.nit  # the old default: every early step on a boundary of distance size
 
 
 def test_callables_are_used_as_given():

@@ -268,14 +268,16 @@ def test_staircase_escapes_the_winding_saddle(group):
 
 
 def test_staircase_escapes_a_local_minimum_of_the_pose_graph():
-    """The chordal trust region on SE(2) from a start wound once around a circle ends at a
-    spurious critical point (50× the optimum); refused, and left by the staircase."""
+    """The chordal trust region on SE(2) from a start wound once around a circle, its steps kept
+    short (``Δ̄`` of one typical distance), ends at a spurious critical point (50× the optimum);
+    refused, and left by the staircase. (With its default radius it happens to jump to the optimum.)"""
     inst = synthetic.circle2d(2, 20, rotation_noise=0.05, translation_noise=0.1, seed=0)
     graph = inst.graph
     rel = relaxation(graph)
     rotations = inst.truth.as_matrix()[:, :2, :2]
     wind = SO2.exp(2 * np.pi * np.arange(graph.n)[:, None] / graph.n).as_matrix()
-    local = TrustRegion().solve(graph.problem("chordal"), rel.poses(wind @ rotations))
+    problem = graph.problem("chordal")
+    local = TrustRegion(max_radius=problem.manifold.typical_dist).solve(problem, rel.poses(wind @ rotations))
     refused = certify(graph, local.x, data=rel)
     assert not refused.optimal and refused.lambda_min < -1.0
     result = staircase(graph, local.x, data=rel)
@@ -311,11 +313,14 @@ def test_staircase_on_a_3d_pose_graph_with_translations_gauge():
 
 
 def test_staircase_escapes_a_local_minimum_of_a_3d_pose_graph():
-    """The chordal trust region on SE(3) from random poses converges (gradient test) to a
-    spurious critical point 50× above the optimum; refused, and left at rank 4."""
+    """The chordal trust region on SE(3) from random poses, its steps kept short (``Δ̄`` of one
+    typical distance), converges (gradient test) to a spurious critical point 50× above the
+    optimum; refused, and left at rank 4."""
     graph = synthetic.cube(4, rotation_noise=0.1, translation_noise=0.1, seed=1).graph
     rel = relaxation(graph)
-    local = TrustRegion(max_iterations=200).solve(graph.problem("chordal"), SE3.random(np.random.default_rng(1), (64,)))
+    problem = graph.problem("chordal")
+    short = TrustRegion(max_iterations=200, max_radius=problem.manifold.typical_dist)
+    local = short.solve(problem, SE3.random(np.random.default_rng(1), (64,)))
     refused = certify(graph, local.x, data=rel)
     assert not refused.optimal and refused.lambda_min < -1.0
     result = staircase(graph, local.x, data=rel)
