@@ -68,9 +68,27 @@ def test_bad_arrays_are_refused(cache):
         ([x.astype(np.float32), p], [np.empty((4, 3)), np.empty((4, 2))], "float32"),
         ([np.asfortranarray(np.zeros((4, 3))).T.T[:, ::-1], p], [np.empty((4, 3)), np.empty((4, 2))], "argument"),
         ([x, p], [np.empty((4, 3)), np.empty((4, 3))], "result"),
+        ([x, p], [np.empty((4, 3)), np.broadcast_to(np.empty(2), (4, 2))], "result"),  # read-only
     ]:
         with pytest.raises(ValueError, match=what):
             native(4, args, outs)
+
+
+def test_read_only_and_viewed_arguments_are_read_where_they_are(cache):
+    """Arguments are passed by address (the buffer protocol for writable arrays, NumPy's ctypes
+    interface for read-only ones): the results do not depend on which, nor on an offset view."""
+    natives = _native.compile_functions([_function()])
+    if natives is None:
+        return
+    rng = np.random.default_rng(1)
+    big = rng.standard_normal((9, 3))
+    x, p = big[2:7], rng.standard_normal((5, 2))  # a view at an offset into its base
+    writable = _run(natives["probe"], x, p)
+    x_ro, p_ro = x.copy(), p.copy()
+    x_ro.flags.writeable = p_ro.flags.writeable = False
+    for a, b in zip(writable, _run(natives["probe"], x_ro, p_ro), strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(writable[0], np.sin(x) * p[:, :1] + p[:, 1:])
 
 
 def test_a_broken_cached_library_is_rebuilt(cache):
