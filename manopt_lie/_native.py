@@ -72,7 +72,7 @@ def _address(a: FloatArray) -> int:
     not empty (0.35 µs), else NumPy's ctypes interface (1.1 µs: it builds an object per call).
     A kernel's call takes the address of each of its 4–6 arrays, its own work a few µs."""
     if a.flags.writeable and a.nbytes:
-        return ctypes.addressof(ctypes.c_char.from_buffer(a))
+        return ctypes.addressof(ctypes.c_char.from_buffer(a.data))
     return int(a.ctypes.data)
 
 
