@@ -188,21 +188,78 @@ def check_last_row(m: FloatArray, tol: float, name: str) -> None:
 
 
 def project_rotation(m: FloatArray) -> FloatArray:
-    """Nearest rotation in Frobenius norm: ``U diag(1, …, 1, det(UVᵀ)) Vᵀ`` of ``M = U S Vᵀ``.
+    """Nearest rotation in Frobenius norm: ``U diag(1, …, 1, det(UVᵀ)) Vᵀ`` of ``M = U S Vᵀ``,
+    the maximizer of ``tr(RᵀM)`` over SO(n).
 
-    A matrix whose largest entry is outside ``[1e-100, 1e100]`` is divided by it first (the
-    polar factor does not change under positive scaling), so that the SVD sees neither
-    overflow nor underflow. The zero matrix projects to the identity.
+    Each matrix is divided by its largest entry first (the polar factor does not change
+    under positive scaling), so that nothing over- or underflows. The zero matrix projects
+    to the identity.
+
+    Computed without an SVD where that is exact and faster: 2×2 in closed form, ``R(θ)``
+    with ``θ = atan2(m₁₀ − m₀₁, m₀₀ + m₁₁)`` (12× a batched SVD at 10³ matrices); batches of
+    :data:`POLAR_BATCH` or more 3×3 matrices of positive determinant by Newton's iteration
+    for the polar factor (:func:`_polar3`, 2.1–2.7×); the rest (smaller batches, larger
+    matrices, ``det M`` not clearly positive, non-finite) by the SVD.
     """
-    big = np.abs(m).max(axis=(-2, -1), keepdims=True)
-    m = m / np.where((big >= 1e-100) & (big <= 1e100), 1.0, np.where(big == 0.0, 1.0, big))
-    m = np.where(big == 0.0, np.eye(m.shape[-1]), m)
+    big = np.abs(m).max(axis=(-2, -1), keepdims=True, initial=0.0)
+    m = np.where(big == 0.0, np.eye(m.shape[-1]), m / np.where(big == 0.0, 1.0, big))
+    if m.shape[-1] == 2 and np.isfinite(m).all():
+        return rotation2(np.arctan2(m[..., 1, 0] - m[..., 0, 1], m[..., 0, 0] + m[..., 1, 1]))
+    if m.shape[-1] != 3 or m.size < 9 * POLAR_BATCH or not np.isfinite(m).all():
+        return _project_svd(m)
+    out = _polar3(m)
+    rest = ~(orthonormality_error(out) <= 1e-13)  # not clearly of positive determinant, or not converged
+    if rest.any():
+        out[rest] = _project_svd(m[rest])
+    return out
+
+
+def _project_svd(m: FloatArray) -> FloatArray:
     u, _, vt = np.linalg.svd(m)
     d = np.sign(np.linalg.det(u @ vt))
     d = np.where(d == 0, 1.0, d)
     u = u.copy()
     u[..., :, -1] *= d[..., None]
     return u @ vt
+
+
+POLAR_BATCH = 256
+"""3×3 batches from which Newton's iteration (:func:`_polar3`: ~0.4 ms of fixed cost, then
+0.6 µs a matrix) is faster than the SVD (~2.3 µs a matrix)."""
+
+POLAR_DETERMINANT = 1e-6
+"""3×3 matrices with ``det M ≤ POLAR_DETERMINANT·(‖M‖_F/√3)³`` (nearly singular, or reflections)
+are projected by the SVD: Newton's iteration would converge slowly or to ``det = −1``."""
+
+
+def _polar3(m: FloatArray) -> FloatArray:
+    """The orthogonal polar factor of 3×3 matrices by Newton's iteration, scaled while far
+    (Higham): ``X ← ½(γX + X⁻ᵀ/γ)``, ``γ = (‖X⁻¹‖_F/‖X‖_F)^½``, with ``X⁻ᵀ`` from the cross
+    products of the columns (``det X · X⁻ᵀ = [b×c, c×a, a×b]``, ``det X = a·(b×c)``). Quadratic
+    near the answer: 5 steps from a rotation perturbed by 5 %, 7 from a random matrix. Elements
+    that do not qualify (:data:`POLAR_DETERMINANT`) come back as ``nan``, for the SVD."""
+    x = m
+    for step in range(12):
+        a, b, c = x[..., :, 0], x[..., :, 1], x[..., :, 2]
+        cof = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=-1)
+        det = np.einsum("...i,...i->...", a, cof[..., :, 0])
+        norm2 = np.einsum("...ij,...ij->...", x, x)
+        if step == 0:  # the rest stay at the identity, whose step is 0
+            ok = det > POLAR_DETERMINANT * (norm2 / 3.0) ** 1.5
+            if not ok.all():
+                x = np.where(ok[..., None, None], x, np.eye(3))
+                continue
+        inv_t = cof / det[..., None, None]
+        if step < 6:
+            gamma = np.sqrt(np.sqrt(np.einsum("...ij,...ij->...", inv_t, inv_t) / norm2))[..., None, None]
+            new = 0.5 * (gamma * x + inv_t / gamma)
+        else:
+            new = 0.5 * (x + inv_t)
+        change = np.abs(new - x).max(initial=0.0)
+        x = new
+        if change <= 1e-14:
+            break
+    return np.where(ok[..., None, None], x, np.nan)
 
 
 def skew2(v: FloatArray) -> FloatArray:

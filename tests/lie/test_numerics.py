@@ -266,3 +266,47 @@ def test_rotation_error_written_out_is_numpys(d, batch, rng):
         assert err.shape == det.shape == batch
         np.testing.assert_allclose(err, expected, rtol=1e-13, atol=1e-15)
         np.testing.assert_allclose(det, np.linalg.det(m), rtol=1e-12, atol=1e-14)
+
+
+@given(
+    d=st.sampled_from([2, 3]),
+    seed=st.integers(0, 2**32 - 1),
+    log_scale=st.floats(-300, 300),
+    shape=st.sampled_from(["random", "near rotation", "reflection", "rank one", "nearly singular"]),
+)
+def test_projection_onto_rotations_maximizes_the_trace(d, seed, log_scale, shape):
+    """``project_rotation`` (2×2 in closed form, 3×3 by Newton's polar iteration, the rest by the
+    SVD) returns a rotation whose ``tr(RᵀM)`` is the SVD projection's — the maximum over SO(n) —
+    for matrices of any scale, reflections and (nearly) singular ones included, where the
+    nearest rotation need not be unique; where it is, both agree entrywise."""
+    rng = np.random.default_rng(seed)
+    m = rng.standard_normal((300, d, d))  # above POLAR_BATCH: the 3×3 path is Newton's
+    if shape == "near rotation":
+        m = _matrix.project_rotation(m) + 1e-2 * m
+    elif shape == "reflection":
+        m[:, :, 0] *= np.where(np.linalg.det(m) > 0, -1.0, 1.0)[:, None]
+    elif shape == "rank one":
+        m = m[:, :, :1] * m[:, :1, :]
+    elif shape == "nearly singular":
+        m[:, :, -1] = m[:, :, 0] + 1e-9 * m[:, :, -1]
+    m = m * 10.0**log_scale
+    r, reference = _matrix.project_rotation(m), _matrix._project_svd(m / np.abs(m).max(axis=(1, 2), keepdims=True))
+    assert np.abs(np.swapaxes(r, 1, 2) @ r - np.eye(d)).max() < 1e-13 and (np.linalg.det(r) > 0).all()
+    unit = m / np.abs(m).max(axis=(1, 2), keepdims=True)
+    np.testing.assert_allclose(np.einsum("nij,nij->n", r, unit), np.einsum("nij,nij->n", reference, unit), atol=1e-12)
+    s = np.linalg.svd(unit, compute_uv=False)
+    unique = (s[:, -2] + s[:, -1] * np.sign(np.linalg.det(unit)) > 1e-6) if d == 3 else (s.sum(axis=1) > 1e-6)
+    np.testing.assert_allclose(r[unique], reference[unique], atol=1e-9)
+
+
+def test_projection_onto_rotations_at_the_edges():
+    """The zero matrix and exact rotations, reflections of 2×2 and 3×3, an empty batch."""
+    for d in (2, 3):
+        np.testing.assert_array_equal(_matrix.project_rotation(np.zeros((d, d))), np.eye(d))
+        rotations = _matrix.project_rotation(np.random.default_rng(d).standard_normal((5, d, d)))
+        np.testing.assert_allclose(_matrix.project_rotation(rotations), rotations, rtol=0, atol=1e-15)
+        assert _matrix.project_rotation(np.zeros((0, d, d))).shape == (0, d, d)
+    with pytest.raises(np.linalg.LinAlgError):  # not finite: the SVD's error, as before
+        _matrix.project_rotation(np.full((2, 3, 3), np.nan))
+    with pytest.raises(np.linalg.LinAlgError):
+        _matrix.project_rotation(np.full((2, 2, 2), np.nan))
