@@ -120,6 +120,14 @@ class HessianScatter:
             self.whole = self._fill(0, m, np.empty(m * self.width**2, dtype=self.dtype))
             del self._row_start, self._offset
 
+    @classmethod
+    def whole(cls, positions: NDArray[np.signedinteger], width: int) -> HessianScatter:
+        """The scatter of the given positions (every edge's ``W²``, flat): for a dense structure,
+        whose positions are one product of coordinates."""
+        scatter = cls.__new__(cls)
+        scatter.width, scatter.dtype, scatter.whole = width, positions.dtype, positions
+        return scatter
+
     def _fill(self, e0: int, e1: int, out: NDArray[np.signedinteger]) -> NDArray[np.signedinteger]:
         width = self.width
         block = out[: (e1 - e0) * width * width].reshape(e1 - e0, width, width)

@@ -119,7 +119,7 @@ class BlockStructure:
             self._grad_scatter = [g for _, g in scatters]
         self._diag_pos.flags.writeable = False
         # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
-        self._chunks = [max(1, CHUNK // f.width**2) for f in self._factors]
+        self._chunks = [max(1, min(f.m, CHUNK // f.width**2)) for f in self._factors]
         # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
         # cost more in page faults than the products written into them. One set per thread,
         # made on first use, so that threads may share the structure.
@@ -201,20 +201,18 @@ class BlockStructure:
         (:data:`~manopt_lie.linalg.DENSE_MAX`)."""
         nv, n = self.dims.size, self._n
         itype = index_dtype(n * n)
-        self._block_pattern = (np.arange(nv + 1, dtype=itype) * nv, np.tile(np.arange(nv, dtype=itype), nv))
-        self._indptr = np.arange(n + 1, dtype=itype) * n
-        self._indices = np.tile(np.arange(n, dtype=itype), n)
-        self._diag_pos = np.arange(n, dtype=itype) * (n + 1)
+        self._block_pattern = (np.arange(0, nv * nv + 1, nv, dtype=itype), np.arange(nv * nv, dtype=itype) % itype(nv))
+        self._indptr = np.arange(0, n * n + 1, n, dtype=itype)
+        self._indices = np.arange(n * n, dtype=itype) % itype(n)
+        self._diag_pos = np.arange(0, n * n, n + 1, dtype=itype)
 
     def _dense_scatters(self) -> tuple[list[HessianScatter], list[NDArray[np.signedinteger]]]:
         """A dense structure's H and g scatters: entry ``[p, q]`` of ``A_eᵀA_e`` at ``c_p·n + c_q``,
         ``c`` the coordinates of ``A_e``'s columns."""
         itype = index_dtype(self._n * self._n)
         columns = [self._coordinates(f).astype(itype) for f in self._factors]
-        hessian = [
-            HessianScatter(c * itype(self._n), np.broadcast_to(c, (len(f.slot_dims), *c.shape)), f.slot_dims)
-            for c, f in zip(columns, self._factors, strict=True)
-        ]
+        hessian = [HessianScatter.whole((c[:, :, None] * itype(self._n) + c[:, None, :]).reshape(-1), c.shape[1])
+                   for c in columns]  # fmt: skip
         return hessian, [c.reshape(-1) for c in columns]
 
     def _coordinates(self, f: FactorIndex) -> IntArray:

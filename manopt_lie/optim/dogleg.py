@@ -159,7 +159,7 @@ class Dogleg(NonlinearLeastSquares):
         g = lin.grad
         gauss_newton, stats = self._gauss_newton_leg(problem, solver, lin, scale)
         flat = g.reshape(-1)
-        curvature = float(flat @ (lin.hessian @ flat))
+        curvature = float(flat @ lin.hessian_product(flat))
         gg = float(flat @ flat)
         # gᵀHg > 0 for an SPD H and g ≠ 0; otherwise the model is flat along g: no Cauchy point.
         cauchy = -(gg / curvature) * g if curvature > 0 else None

@@ -143,6 +143,15 @@ class Linearization:
             self._hessian, self._jacobians = self._hessian(), None
         return self._hessian
 
+    def hessian_product(self, v: FloatArray) -> FloatArray:
+        """``H v`` for a flat ``v``; a small system's ``H``, which stores every entry (a dense
+        structure's), is multiplied as the dense matrix its data is, without sparse machinery."""
+        h = self.hessian
+        n = h.shape[0]
+        if h.nnz == n * n and h.has_canonical_format:  # every entry once, column after column (H = Hᵀ)
+            return h.data.reshape(n, n) @ v
+        return h @ v
+
     def recycle(self, old: Linearization) -> None:
         """Assemble ``H``, at its first use, into the arrays of ``old``'s (assembled) ``H``, which
         is given up: ``old.hessian`` raises from now on.
@@ -552,7 +561,8 @@ class LeastSquaresProblem(Problem):
 
     def _gauss_newton_product(self, x: Any, v: FloatArray) -> FloatArray:
         """``JᵀWJ v`` (fixed variables: ``v`` itself, which no step ever excites)."""
-        return (self.linearize(x).hessian @ np.asarray(v).reshape(-1)).reshape(self._layout.tangent_shape)
+        flat = np.asarray(v, dtype=np.float64).reshape(-1)
+        return self.linearize(x).hessian_product(flat).reshape(self._layout.tangent_shape)
 
     @property
     def structure(self) -> BlockStructure | None:

@@ -67,7 +67,7 @@ _DAMPINGS = ("identity", "diagonal")
 def model_decrease(lin: Linearization, delta: Any) -> float:
     """``m(0) − m(δ) = −gᵀδ − ½δᵀHδ``: the decrease the Gauss-Newton model predicts for ``δ``."""
     flat, g = np.asarray(delta).reshape(-1), lin.grad.reshape(-1)
-    return -float(g @ flat) - 0.5 * float(flat @ (lin.hessian @ flat))
+    return -float(g @ flat) - 0.5 * float(flat @ lin.hessian_product(flat))
 
 
 def _no_descent(lin: Linearization) -> Status:

@@ -433,5 +433,10 @@ def test_small_problems_store_their_normal_equations_dense():
     expected = BlockStructure(small.dims, [(v, 6)]).hessian([block]).toarray()
     expected[np.diag_indices(n)] += np.repeat(small.fixed, 6)  # …and 1s on its diagonal
     np.testing.assert_allclose(lin.hessian.toarray(), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    for problem, x in ((small, x0), (large, y0)):  # H v: through the dense matrix, or the sparse one
+        linear = problem.linearize(x)
+        u = np.random.default_rng(1).standard_normal(problem.structure.n)
+        hv = linear.hessian.toarray() @ u
+        np.testing.assert_allclose(linear.hessian_product(u), hv, rtol=0, atol=1e-13 * np.abs(hv).max())
     res = LevenbergMarquardt().solve(small, x0)
     assert res.success
