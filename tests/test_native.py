@@ -89,6 +89,13 @@ def test_read_only_and_viewed_arguments_are_read_where_they_are(cache):
     for a, b in zip(writable, _run(natives["probe"], x_ro, p_ro), strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(writable[0], np.sin(x) * p[:, :1] + p[:, 1:])
+    # A constant argument pinned once (its address taken at pinning): the same results, and
+    # still refused where its shape does not fit.
+    pinned = _run(natives["probe"], x, _native.Pinned(p))
+    for a, b in zip(writable, pinned, strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match=r"\(4, 2\) \(pinned\) is not \(5, 2\)"):
+        _run(natives["probe"], x, _native.Pinned(p[:4]))
 
 
 def test_a_broken_cached_library_is_rebuilt(cache):

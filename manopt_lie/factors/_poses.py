@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from .. import _kernels
 from .._kernels import flat_rows
+from .._native import Pinned
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 from ..optim import SideBySide
 
@@ -114,8 +115,9 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
         else:
             write(r, kernels.jr_inv(r), kernels.adjoint(_inverse(y, d)), a, b, r_out, j_out)
 
-    z_flat = flat_rows(z_inv)
-    l_flat = [] if L is None else flat_rows(L) if per_edge else [np.ascontiguousarray(L).ravel()]
+    # The measurements, constant: their addresses taken once for every native call.
+    z_flat = [Pinned(a) for a in flat_rows(z_inv)]
+    l_flat = [] if L is None else [Pinned(a) for a in (flat_rows(L) if per_edge else [np.ravel(L)])]
     kinds = [("whitened " if L is not None else "") + kind for kind in ("log", "between")]  # [jac]
 
     def residual(xi: LieGroup, xj: LieGroup, jac: bool = False) -> Any:

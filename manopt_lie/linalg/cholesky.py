@@ -202,16 +202,21 @@ class CholeskySolver:
             a diagonal entry.
         """
         H = _check_square(H)
-        if not H.has_canonical_format:
-            H = H.copy()
-            H.sum_duplicates()
-        kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
         trusted = self._trusted is not None and all(
             same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
-        )
-        blocks = self._structure.pattern_digest() if trusted and self._structure is not None else None
-        key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, blocks)
-        impl = ANALYSES.acquire(key)
+        )  # the structure's own pattern: canonical and symmetric by construction
+        if not trusted and not H.has_canonical_format:
+            H = H.copy()
+            H.sum_duplicates()
+        key, impl = None, None
+        if trusted and self.backend == "dense" and self._structure is not None and self._structure.dense:
+            # A dense structure's matrix, every entry stored: nothing to analyse, nothing worth pooling.
+            impl = _Dense(H.indptr, H.indices)
+        else:
+            kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
+            blocks = self._structure.pattern_digest() if trusted and self._structure is not None else None
+            key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, blocks)
+            impl = ANALYSES.acquire(key)
         if impl is None:
             if not trusted:
                 pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
@@ -228,8 +233,10 @@ class CholeskySolver:
                 impl = BACKENDS[self.backend](H.indptr, H.indices)
         if self._lend is not None:
             self._lend()  # the previous pattern's backend goes back to the pool
-        self._lend = weakref.finalize(self, ANALYSES.release, key, impl)
-        self._lend.atexit = False
+        self._lend = None
+        if key is not None:
+            self._lend = weakref.finalize(self, ANALYSES.release, key, impl)
+            self._lend.atexit = False
         self._impl = impl
         self._indptr, self._indices = H.indptr, H.indices
         self._probe = _probe(H.shape[0])
@@ -247,8 +254,9 @@ class CholeskySolver:
         """The analysed (and factorized) backend, kept by the caller: it is never lent to the
         pool, whose next borrower would overwrite its factor (e.g. a factor handed out for
         selected inversion)."""
-        assert self._impl is not None and self._lend is not None, "analyze() first"
-        self._lend.detach()
+        assert self._impl is not None, "analyze() first"
+        if self._lend is not None:  # (a dense structure's backend is never pooled)
+            self._lend.detach()
         return self._impl
 
     def matches(self, H: sp.spmatrix | sp.sparray) -> bool:
@@ -330,12 +338,14 @@ class CholeskySolver:
         x = impl.solve(rhs)
         residual = impl.matrix @ x
         residual -= rhs
-        # Per column: ‖Hx − b‖², ‖b‖² and bᵀx.
-        r2, b2, curvature = (np.einsum("ij,ij->j", u, v) for u, v in ((residual, residual), (rhs, rhs), (rhs, x)))
-        for j, what in enumerate(("the probe solve H⁻¹z after factorization", "the solution of H x = b")):
-            if not np.isfinite(x[:, j]).all():
-                raise SingularSystemError(f"{what} is not finite")
-            self._check_numbers(float(np.sqrt(r2[j])), float(np.sqrt(b2[j])), float(curvature[j]), what)
+        # Per column: ‖Hx − b‖², ‖b‖² and bᵀx (diagonals of 2×2 products), tested together; a
+        # failure is then named column by column.
+        r2, b2, curvature = ((u.T @ v).diagonal() for u, v in ((residual, residual), (rhs, rhs), (rhs, x)))
+        if not (np.isfinite(x).all() and (r2 <= self.rtol**2 * b2).all() and ((curvature > 0) | (b2 == 0)).all()):
+            for j, what in enumerate(("the probe solve H⁻¹z after factorization", "the solution of H x = b")):
+                if not np.isfinite(x[:, j]).all():
+                    raise SingularSystemError(f"{what} is not finite")
+                self._check_numbers(float(np.sqrt(r2[j])), float(np.sqrt(b2[j])), float(curvature[j]), what)
         self._H = impl.matrix
         return np.ascontiguousarray(x[:, 1])
 

@@ -124,11 +124,17 @@ class BlockStructure:
         # cost more in page faults than the products written into them. One set per thread,
         # made on first use, so that threads may share the structure.
         self._local = threading.local()
+        self._first: tuple[int, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]] | None = None
         self._jac: _JacobianPattern | None = None
 
     def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]:
         """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A, and
-        the positions of a chunk's products where a factor's scatter is made per chunk)."""
+        the positions of a chunk's products where a factor's scatter is made per chunk). The first
+        thread's are also kept beside its id: found without the thread-local lookup, which costs
+        more than a small system's products."""
+        first = self._first
+        if first is not None and first[0] == threading.get_ident():
+            return first[1]
         work: tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]] | None = getattr(
             self._local, "work", None
         )
@@ -142,6 +148,8 @@ class BlockStructure:
             work = (np.empty(max(h for h, _, _ in sizes)), np.empty(max(g for _, g, _ in sizes)),
                     np.empty(max(w for _, _, w in sizes)), positions)  # fmt: skip
             self._local.work = work
+            if self._first is None:
+                self._first = (threading.get_ident(), work)
         return work
 
     # -- symbolic analysis -------------------------------------------------
@@ -201,9 +209,9 @@ class BlockStructure:
         (:data:`~manopt_lie.linalg.DENSE_MAX`)."""
         nv, n = self.dims.size, self._n
         itype = index_dtype(n * n)
-        self._block_pattern = (np.arange(0, nv * nv + 1, nv, dtype=itype), np.arange(nv * nv, dtype=itype) % itype(nv))
+        self._block_pattern = (np.arange(0, nv * nv + 1, nv, dtype=itype), np.tile(np.arange(nv, dtype=itype), nv))
         self._indptr = np.arange(0, n * n + 1, n, dtype=itype)
-        self._indices = np.arange(n * n, dtype=itype) % itype(n)
+        self._indices = np.tile(np.arange(n, dtype=itype), n)
         self._diag_pos = np.arange(0, n * n, n + 1, dtype=itype)
 
     def _dense_scatters(self) -> tuple[list[HessianScatter], list[NDArray[np.signedinteger]]]:

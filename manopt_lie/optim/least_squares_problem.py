@@ -392,9 +392,12 @@ class LeastSquaresProblem(Problem):
         """``½ Σ_e ρ(‖r_e‖²)`` of factor ``k``'s residuals and the IRLS weights ``ρ'(‖r_e‖²)``:
         for plain least squares ``½ Σ r²`` in one product and weights 1 (an array kept once)."""
         loss = self._factors[k].robust_loss
-        if type(loss) is Trivial:  # (einsum: one core, where BLAS's threaded ddot may stall)
+        if type(loss) is Trivial:
             flat = r.reshape(-1)
-            return 0.5 * float(np.einsum("i,i->", flat, flat)), self._unit_weights[k]
+            # Large: einsum, on one core, where BLAS's threaded ddot may stall; small (OpenBLAS's ddot
+            # stays on one thread up to 10⁴ entries): np.dot, without einsum's parsing.
+            square = np.dot(flat, flat) if flat.size <= 10_000 else np.einsum("i,i->", flat, flat)
+            return 0.5 * float(square), self._unit_weights[k]
         s = np.einsum("...i,...i->...", r, r)
         return 0.5 * float(np.sum(loss.rho(s))), loss.weight(s)
 

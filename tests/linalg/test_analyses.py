@@ -47,6 +47,21 @@ def test_a_structure_of_the_same_pattern_takes_the_pooled_analysis(backend, rng)
     np.testing.assert_allclose(x2, x1, rtol=0, atol=1e-12 * np.abs(x1).max())
 
 
+def test_a_dense_structure_is_solved_without_the_pool():
+    """A small system stored dense has nothing to analyse: its solver neither borrows nor lends,
+    keeps its factorization for later solves, and solves as the sparse pattern does."""
+    sparse, blocks, residuals = pose_graph(np.random.default_rng(2), n_poses=12, d=3)
+    dense = BlockStructure(sparse.dims, [(f.var_ids, f.residual_dim) for f in sparse._factors], dense=True)
+    solver = CholeskySolver().bind(dense)
+    assert solver.backend == "dense"
+    H, g = dense.normal_equations(blocks, residuals)
+    x = solver(H, -g)
+    assert ANALYSES.misses == 0 and ANALYSES.hits == 0 and len(ANALYSES) == 0
+    np.testing.assert_allclose(x, solver.solve(-g), rtol=0, atol=0)
+    _, x_sparse = _solve(sparse, blocks, residuals, "dense")
+    np.testing.assert_allclose(x, x_sparse, rtol=0, atol=1e-12 * np.abs(x).max())
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_solvers_alive_at_once_each_get_their_own_analysis(backend):
     s, blocks, residuals = pose_graph(np.random.default_rng(1), n_poses=20, d=3)
