@@ -121,7 +121,7 @@ class HessianScatter:
             del self._row_start, self._offset
 
     @classmethod
-    def whole(cls, positions: NDArray[np.signedinteger], width: int) -> HessianScatter:
+    def of_positions(cls, positions: NDArray[np.signedinteger], width: int) -> HessianScatter:
         """The scatter of the given positions (every edge's ``W²``, flat): for a dense structure,
         whose positions are one product of coordinates."""
         scatter = cls.__new__(cls)

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
-from ._analyses import ANALYSES, pattern_key
+from ._analyses import ANALYSES, Key, pattern_key
 from ._backends import _PACKAGES, BACKENDS, DENSE_MAX, Backend, _Dense, available_backends
 from ._cholmod import cholmod_backend
 from ._factors import same_buffer
@@ -208,7 +208,8 @@ class CholeskySolver:
         if not trusted and not H.has_canonical_format:
             H = H.copy()
             H.sum_duplicates()
-        key, impl = None, None
+        key: Key | None = None
+        impl: Backend | None = None
         if trusted and self.backend == "dense" and self._structure is not None and self._structure.dense:
             # A dense structure's matrix, every entry stored: nothing to analyse, nothing worth pooling.
             impl = _Dense(H.indptr, H.indices)

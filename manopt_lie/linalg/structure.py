@@ -219,7 +219,7 @@ class BlockStructure:
         ``c`` the coordinates of ``A_e``'s columns."""
         itype = index_dtype(self._n * self._n)
         columns = [self._coordinates(f).astype(itype) for f in self._factors]
-        hessian = [HessianScatter.whole((c[:, :, None] * itype(self._n) + c[:, None, :]).reshape(-1), c.shape[1])
+        hessian = [HessianScatter.of_positions((c[:, :, None] * itype(self._n) + c[:, None, :]).reshape(-1), c.shape[1])
                    for c in columns]  # fmt: skip
         return hessian, [c.reshape(-1) for c in columns]
 
