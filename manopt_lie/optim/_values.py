@@ -121,8 +121,11 @@ def snapshot(x: Any) -> Any:
 def same_point(snap: Any, x: Any) -> bool:
     """Whether ``x`` has the value recorded in ``snap`` (by :func:`snapshot`): one
     ``np.array_equal`` per array, cheap beside any evaluation it saves."""
-    if isinstance(snap, _Element):
-        return type(x) is snap.cls and bool(np.array_equal(x.data, snap.data))
+    if type(snap) is _Element:  # (one comparison, as for arrays below: np.array_equal costs twice that)
+        if type(x) is not snap.cls:
+            return False
+        data = x.data
+        return data.shape == snap.data.shape and bool((data == snap.data).all())
     if isinstance(snap, tuple):
         return isinstance(x, tuple) and len(x) == len(snap) and all(map(same_point, snap, x))
     if type(x) is np.ndarray:  # the hot path: one comparison, no conversions
