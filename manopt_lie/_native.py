@@ -106,15 +106,17 @@ class Native:
     def __call__(self, m: int, args: Sequence[FloatArray | Pinned], outs: Sequence[FloatArray]) -> None:
         pointers, strides = [], []
         for a, size in zip(args, self._sizes_in, strict=True):
-            pinned = type(a) is Pinned
-            shape = a.shape
-            shared = len(shape) == 1
-            if shape != ((size,) if shared else (m, size)) or not (
-                pinned or (a.dtype is _FLOAT64 and a.flags.c_contiguous)  # type: ignore[union-attr]
-            ):
-                what = "pinned" if pinned else a.dtype  # type: ignore[union-attr]
-                raise ValueError(f"native kernel: an argument of shape {shape} ({what}) is not ({m}, {size})")
-            pointers.append(a.address if pinned else _address(a))  # type: ignore[union-attr,arg-type]
+            shared = len(a.shape) == 1
+            fits = a.shape == ((size,) if shared else (m, size))
+            if isinstance(a, Pinned):  # made float64 and C-contiguous when pinned
+                what: object = "pinned"
+                address = a.address
+            else:
+                what, fits = a.dtype, fits and a.dtype is _FLOAT64 and a.flags.c_contiguous
+                address = _address(a) if fits else 0
+            if not fits:
+                raise ValueError(f"native kernel: an argument of shape {a.shape} ({what}) is not ({m}, {size})")
+            pointers.append(address)
             strides.append(0 if shared else size)
         results = []
         for o, size in zip(outs, self._sizes_out, strict=True):
