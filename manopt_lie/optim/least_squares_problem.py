@@ -144,8 +144,10 @@ class Linearization:
         return self._hessian
 
     def hessian_product(self, v: FloatArray) -> FloatArray:
-        """``H v`` for a flat ``v``; a small system's ``H``, which stores every entry (a dense
-        structure's), is multiplied as the dense matrix its data is, without sparse machinery."""
+        """``H v`` for a flat ``v`` of shape ``(n,)`` (``n`` the tangent dimension), shape ``(n,)``.
+
+        A small system's ``H``, which stores every entry (a dense structure's), is multiplied as
+        the dense matrix its data is, without sparse machinery; any other through SciPy."""
         h = self.hessian
         n = h.shape[0]
         if h.nnz == n * n and h.has_canonical_format:  # every entry once, column after column (H = Hᵀ)
