@@ -54,7 +54,7 @@ def worker(solver: str, dataset: str, solves: int, count: int) -> None:
     else:
         import gtsam
 
-        built = [peers._gtsam_problem(gtsam, graph, x0) for _ in range(solves + 1)]
+        built = [peers.gtsam_problem(gtsam, graph, x0) for _ in range(solves + 1)]
         params = gtsam.LevenbergMarquardtParams()
         params.setRelativeErrorTol(1e-5)
 

@@ -119,9 +119,9 @@ def landmark_case(seed: int = 0) -> dict[str, Any]:
 
 
 def gtsam_pose_graph(gtsam: Any, case: dict[str, Any]) -> tuple[Any, Any, list[int]]:
-    from manopt_lie.bench.peers import _gtsam_problem
+    from manopt_lie.bench.peers import gtsam_problem
 
-    graph, values = _gtsam_problem(gtsam, case["graph"], case["x"])
+    graph, values = gtsam_problem(gtsam, case["graph"], case["x"])
     return graph, values, [k for k in range(case["graph"].n) if k != case["graph"].anchor]
 
 

@@ -171,7 +171,7 @@ def _gtsam_poses(gtsam: Any, x: LieGroup) -> list[Any]:
     return [gtsam.Pose2(*p) for p in xyt.tolist()]
 
 
-def _gtsam_problem(gtsam: Any, graph: PoseGraph, x0: LieGroup) -> tuple[Any, Any]:
+def gtsam_problem(gtsam: Any, graph: PoseGraph, x0: LieGroup) -> tuple[Any, Any]:
     """The factor graph whose error is ``graph.cost(x, "geodesic")`` (plus a constrained prior
     holding the anchor at ``x0``) and the initial values, keys ``0..n-1``."""
     bad = costs.indefinite_edges(graph.information)
@@ -198,7 +198,7 @@ def _gtsam_problem(gtsam: Any, graph: PoseGraph, x0: LieGroup) -> tuple[Any, Any
     return factors, values
 
 
-def _from_gtsam(gtsam: Any, group: type[LieGroup], values: Any) -> LieGroup:
+def from_gtsam(gtsam: Any, group: type[LieGroup], values: Any) -> LieGroup:
     """Poses of keys ``0..n-1`` (``Values`` iterate in key order) as our group, projected."""
     if group is SE3:
         a = gtsam.utilities.extractPose3(values)  # (n, 12): R row by row, then t
@@ -212,7 +212,7 @@ def _gtsam(
     **_: Any,
 ) -> PeerRun:
     gtsam = _import(name)
-    factors, values = _gtsam_problem(gtsam, graph, x0)
+    factors, values = gtsam_problem(gtsam, graph, x0)
     lm = name == "gtsam-lm"
     params = gtsam.LevenbergMarquardtParams() if lm else gtsam.DoglegParams()
     params.setRelativeErrorTol(rel_cost_decrease)
@@ -243,7 +243,7 @@ def _gtsam(
             status = "max_time"
             break
     seconds = time.perf_counter() - start
-    x = _from_gtsam(gtsam, graph.group, optimizer.values())
+    x = from_gtsam(gtsam, graph.group, optimizer.values())
     return PeerRun(x, int(optimizer.iterations()), seconds, status, bool(converged), history_cost, history_time)
 
 

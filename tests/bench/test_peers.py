@@ -106,10 +106,10 @@ def test_gtsam_error_is_our_geodesic_cost(graphs, rng, group):
     gtsam = pytest.importorskip("gtsam")
     graph = graphs[group]
     for x in (group.random(rng, (graph.n,)), graph.chordal_initialization()):
-        factors, values = peers._gtsam_problem(gtsam, graph, x)  # the anchor prior sits at x: it adds 0
+        factors, values = peers.gtsam_problem(gtsam, graph, x)  # the anchor prior sits at x: it adds 0
         assert factors.size() == graph.m + 1
         assert factors.error(values) == pytest.approx(graph.cost(x, "geodesic"), rel=1e-9)
-        back = peers._from_gtsam(gtsam, group, values)
+        back = peers.from_gtsam(gtsam, group, values)
         np.testing.assert_allclose(back.as_matrix(), x.as_matrix(), atol=1e-12)
 
 
@@ -128,7 +128,7 @@ def test_gtsam_reaches_our_optimum_and_matches_optimize(graphs, group, name):
     assert run.history_cost[-1] == pytest.approx(graph.cost(run.x, "geodesic"), rel=1e-9)
     assert np.all(np.diff(run.history_time) >= 0) and run.time >= run.history_time[-1]
     # The hand-stepped loop stops where GTSAM's optimize() does.
-    factors, values = peers._gtsam_problem(gtsam, graph, x0)
+    factors, values = peers.gtsam_problem(gtsam, graph, x0)
     if name == "gtsam-lm":
         optimizer = gtsam.LevenbergMarquardtOptimizer(factors, values, gtsam.LevenbergMarquardtParams())
     else:

@@ -242,13 +242,13 @@ def test_against_monte_carlo():
 @pytest.mark.parametrize("which", ["2d", "3d"])
 def test_against_gtsam_marginals(which):
     gtsam = pytest.importorskip("gtsam")
-    from manopt_lie.bench.peers import _gtsam_problem
+    from manopt_lie.bench.peers import gtsam_problem
 
     inst = grid2d(5, 5, seed=6) if which == "2d" else cube(3, seed=7, loop_closure_probability=0.3)
     graph = inst.graph
     problem = graph.problem("geodesic")
     x = GaussNewton(grad_rtol=1e-12).solve(problem, inst.truth).x
-    factors, values = _gtsam_problem(gtsam, graph, x)  # the anchor held by a constrained prior
+    factors, values = gtsam_problem(gtsam, graph, x)  # the anchor held by a constrained prior
     theirs = gtsam.Marginals(factors, values)
     ours = marginal_covariances(problem, x)
     expected = np.stack([theirs.marginalCovariance(k) for k in range(1, graph.n)])
