@@ -12,8 +12,8 @@ LAPACK's Cholesky, and nothing else: no validation of the start, no history, no 
 factorization or of the solution, no robust loss, one factor type. It is not a solver to use;
 it bounds from below what any Python loop over these kernels costs, so it tells how much of
 the library's time on a small system its machinery takes and whether a goal is within reach of
-trimming at all. ``bare``, ``ours`` (``LevenbergMarquardt(rel_cost_decrease=1e-5)``, the pool
-of analyses emptied before each run) and GTSAM's LM run in alternation from the chordal
+trimming at all. ``bare``, ``ours`` (``LevenbergMarquardt(rel_cost_decrease=1e-5)``, the pools
+of structures and analyses emptied before each run) and GTSAM's LM run in alternation from the chordal
 initialization, each problem built before its clock; the table gives the medians, the ratios
 to GTSAM and the final costs (all three agree).
 """
@@ -30,7 +30,7 @@ from scipy.linalg import lapack
 
 from manopt_lie.bench import peers
 from manopt_lie.bench.report import write_json
-from manopt_lie.linalg._analyses import ANALYSES
+from manopt_lie.linalg import clear_caches
 from manopt_lie.optim import LeastSquaresProblem, LevenbergMarquardt
 from manopt_lie.problems import PoseGraph, catalogue, g2o
 
@@ -99,7 +99,7 @@ def compare(graph: PoseGraph, repeat: int) -> list[dict[str, Any]]:
 
     def ours() -> tuple[Any, Any]:
         problem, solver = graph.problem("geodesic"), LevenbergMarquardt(rel_cost_decrease=RULE)
-        ANALYSES.clear()  # each run pays its own analysis, as GTSAM its ordering
+        clear_caches()  # each run pays its own analysis, as GTSAM its ordering
         return lambda: solver.solve(problem, x0), lambda out: (out.nit, out.x)
 
     solvers = {"bare": bare, "ours": ours}

@@ -13,7 +13,7 @@ solving none or all of them after one warm-up solve — and the difference over 
 count per solve: the problem's construction and the imports cancel. Ours is
 ``LevenbergMarquardt(rel_cost_decrease=1e-5).solve``, GTSAM's the construction of its
 ``LevenbergMarquardtOptimizer`` and ``optimize()`` (what ``bench_pose_graph.py`` times of each),
-both from the chordal initialization with the pool of analyses emptied before each of ours.
+both from the chordal initialization with the pools of structures and analyses emptied before each of ours.
 
 Instructions are not time: interpreted code retires fewer per cycle than compiled C++ (on
 tinyGrid3D ours run ~2.2× GTSAM's instructions in ~4× its time), but fewer instructions on the
@@ -38,7 +38,7 @@ SOLVERS = ("ours", "gtsam")
 def worker(solver: str, dataset: str, solves: int, count: int) -> None:
     """Build ``solves`` problems, warm up with one solve, then solve ``count`` of them."""
     from manopt_lie.bench import peers
-    from manopt_lie.linalg._analyses import ANALYSES
+    from manopt_lie.linalg import clear_caches
     from manopt_lie.optim import LevenbergMarquardt
     from manopt_lie.problems import catalogue, g2o
 
@@ -48,7 +48,7 @@ def worker(solver: str, dataset: str, solves: int, count: int) -> None:
         problems = [graph.problem("geodesic") for _ in range(solves + 1)]
 
         def solve(k: int) -> None:
-            ANALYSES.clear()
+            clear_caches()
             LevenbergMarquardt(rel_cost_decrease=1e-5).solve(problems[k], x0)
 
     else:

@@ -12,7 +12,7 @@ For each dataset (``$MANOPT_LIE_DATA`` or ``../shared/datasets``):
   decrease of the cost below 1e-5), all final costs evaluated with our definition. The
   solvers run in alternation, ``--repeat`` rounds in one process, medians: other load on
   the machine hits each alike. Our time is the wall time of ``solve``: the structure built
-  and its pattern analysed inside it, the pool of analyses emptied before each run.
+  and its pattern analysed inside it, the pools of structures and analyses emptied before each run.
   GTSAM's is its optimizer's construction and iterations. Each side's problem — the
   measurements and the square roots of their information matrices: our
   ``graph.problem("geodesic")``, GTSAM's factor graph and noise models — is built before
@@ -38,8 +38,7 @@ import numpy as np
 
 from manopt_lie.bench import peers, report
 from manopt_lie.bench.timing import median_time
-from manopt_lie.linalg import CholeskySolver
-from manopt_lie.linalg._analyses import ANALYSES
+from manopt_lie.linalg import CholeskySolver, clear_caches
 from manopt_lie.optim import Dogleg, GaussNewton, LevenbergMarquardt, TrustRegion
 from manopt_lie.problems import catalogue, g2o
 from manopt_lie.problems.pose_graph import PoseGraph
@@ -59,7 +58,7 @@ def geodesic_runs(graph: PoseGraph, x0: Any, repeat: int) -> dict[str, dict[str,
     median time, the iterations and the final geodesic cost (ours)."""
 
     def ours(make: Any) -> tuple[Any, float]:
-        ANALYSES.clear()  # each run pays its own symbolic analysis, as GTSAM pays its ordering
+        clear_caches()  # each run pays its own symbolic analysis, as GTSAM pays its ordering
         problem = graph.problem("geodesic")  # before the clock, as GTSAM's factor graph
         start = time.perf_counter()
         return make(rel_cost_decrease=GTSAM_RULE).solve(problem, x0), time.perf_counter() - start
@@ -86,9 +85,9 @@ def geodesic_runs(graph: PoseGraph, x0: Any, repeat: int) -> dict[str, dict[str,
 
 def setup_time(graph: PoseGraph, x0: Any) -> float:
     """What a solve does once, in seconds: build the problem's sparsity structure and analyse
-    the pattern (the pool emptied first, as for a new pattern). It is measured as the first
+    the pattern (the pools emptied first, as for a new pattern). It is measured as the first
     linearization and solve minus a second pair at another point."""
-    ANALYSES.clear()
+    clear_caches()
     problem = graph.problem("geodesic")
     start = time.perf_counter()
     lin = problem.linearize(x0)

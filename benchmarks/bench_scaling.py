@@ -8,8 +8,8 @@ solver starts from our chordal initialization and stops by GTSAM's rule (relativ
 decrease below 1e-5).
 
 Time: in one process, ours (GN, LM) and GTSAM's LM alternate, ``--repeat`` rounds, medians;
-our pool of symbolic analyses is emptied before each of our runs (so each pays its own
-analysis, as GTSAM pays its ordering); each side's problem (our ``graph.problem``, GTSAM's
+our pools of structures and symbolic analyses are emptied before each of our runs (so each
+pays its own set-up, as GTSAM pays its ordering); each side's problem (our ``graph.problem``, GTSAM's
 factor graph) is built before its clock starts. Time per iteration is the median of the
 iterations' wall times (each library's own history). Memory: each solver runs in a
 subprocess of its own (``--worker``) that rebuilds the instance, loads the start, resets
@@ -43,7 +43,7 @@ import numpy as np  # noqa: E402
 from manopt_lie import _kernels  # noqa: E402
 from manopt_lie.bench import peers  # noqa: E402
 from manopt_lie.bench.report import write_json  # noqa: E402
-from manopt_lie.linalg._analyses import ANALYSES  # noqa: E402
+from manopt_lie.linalg import clear_caches  # noqa: E402
 from manopt_lie.optim import GaussNewton, LevenbergMarquardt  # noqa: E402
 from manopt_lie.problems import synthetic  # noqa: E402
 
@@ -65,7 +65,7 @@ def per_iteration(times: list[float] | np.ndarray) -> float:
 
 
 def ours(name: str, graph: Any, x0: Any) -> dict[str, Any]:
-    ANALYSES.clear()  # a cold analysis, as GTSAM orders anew
+    clear_caches()  # a cold analysis, as GTSAM orders anew
     make = GaussNewton if name == "GN" else LevenbergMarquardt
     problem = graph.problem("geodesic")  # before the clock, as GTSAM's factor graph (bench_pose_graph.py)
     start = time.perf_counter()

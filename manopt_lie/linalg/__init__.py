@@ -12,8 +12,12 @@ least-squares optimizers take (``linear_solver="auto"``, ``"cholesky"`` or ``"pc
     solver = get_linear_solver("cholesky").bind(structure)   # one per run
     H, g = structure.normal_equations(blocks, residuals)
     delta = -solver(structure.add_diagonal(H, lam * H.diagonal()), g)
+
+Analyses and structures are pooled by pattern across solvers and problems (a graph solved again
+skips both); :func:`clear_caches` forgets them.
 """
 
+from ._analyses import clear_caches
 from ._backends import DENSE_MAX
 from .cholesky import CholeskySolver, FactorCost
 from .errors import SingularSystemError
@@ -41,4 +45,5 @@ __all__ = [
     "SelectedInverse",
     "Supernodes",
     "cholesky_factor",
+    "clear_caches",
 ]

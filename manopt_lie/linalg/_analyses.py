@@ -1,4 +1,5 @@
-"""Symbolic analyses kept across solvers: analysed backends pooled by the pattern they analysed.
+"""Symbolic work kept across problems and solvers: analysed backends pooled by the pattern they
+analysed, and block structures by the graph they were built for.
 
 The ordering and symbolic factorization of ``H`` depend on its pattern only, and a run
 of Gauss-Newton or Levenberg-Marquardt builds a fresh :class:`CholeskySolver` (``bind``)
@@ -15,6 +16,12 @@ structure's own pattern, the digest of its blocks and their sizes instead). The 
 at most :data:`MAX_IDLE` idle backends and :data:`MAX_IDLE_NNZ` stored entries of
 ``H`` in all (least recently returned dropped first): a big factor is not kept alive
 for a pattern that may never come back.
+
+A :class:`~manopt_lie.linalg.BlockStructure` (the pattern of ``H`` and the scatter maps that fill
+it) depends only on the variables' dimensions and on each factor type's edges and residual
+length, and nothing changes it once built, so :data:`STRUCTURES` shares one among every problem
+of the same graph (:func:`structure_key`), under the same bounds. :func:`clear_caches` empties
+both pools: the next solve of any pattern pays its whole set-up.
 """
 
 from __future__ import annotations
@@ -22,12 +29,13 @@ from __future__ import annotations
 import hashlib
 import threading
 from collections import OrderedDict
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ANALYSES", "AnalysisPool", "pattern_key"]
+__all__ = ["ANALYSES", "STRUCTURES", "AnalysisPool", "StructurePool", "clear_caches", "pattern_key", "structure_key"]
 
 MAX_IDLE = 8
 MAX_IDLE_NNZ = 4_000_000
@@ -103,3 +111,74 @@ class AnalysisPool:
 
 ANALYSES = AnalysisPool()
 """The process's pool, used by every :class:`~manopt_lie.linalg.CholeskySolver`."""
+
+
+class _Sized(Protocol):
+    @property
+    def nnz(self) -> int: ...
+
+
+S = TypeVar("S", bound=_Sized)
+
+
+def structure_key(dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool) -> bytes:
+    """The key of a block structure's inputs: the variables' dimensions, every factor type's edge
+    array (shape and dtype included) and residual length, and whether ``H`` is stored dense."""
+    shapes = repr([(ids.shape, ids.dtype.str, int(r)) for ids, r in factors] + [dims.shape, dims.dtype.str, dense])
+    return digest(dims, *(ids for ids, _ in factors)) + shapes.encode()
+
+
+class StructurePool:
+    """Built block structures by :func:`structure_key`, shared (never lent: nothing writes to a
+    built structure, and one structure serves many threads); thread-safe. At most ``max_kept``
+    structures with ``max_kept_nnz`` entries of ``H`` in all are kept, least recently used
+    dropped first.
+
+    Attributes
+    ----------
+    hits, misses : int
+        Structures found in the pool, and structures built.
+    """
+
+    def __init__(self, max_kept: int = MAX_IDLE, max_kept_nnz: int = MAX_IDLE_NNZ) -> None:
+        self.max_kept, self.max_kept_nnz = max_kept, max_kept_nnz
+        self._kept: OrderedDict[bytes, Any] = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = self.misses = 0
+
+    def get(self, key: bytes, build: Callable[[], S]) -> S:
+        """The structure of ``key``: the pooled one, else ``build()``'s (then pooled if small enough)."""
+        with self._lock:
+            found = self._kept.get(key)
+            if found is not None:
+                self._kept.move_to_end(key)
+                self.hits += 1
+                return found  # type: ignore[no-any-return]
+            self.misses += 1
+        built = build()  # outside the lock: a large structure takes seconds
+        if built.nnz <= self.max_kept_nnz:
+            with self._lock:
+                self._kept[key] = built
+                while len(self._kept) > self.max_kept or sum(s.nnz for s in self._kept.values()) > self.max_kept_nnz:
+                    self._kept.popitem(last=False)
+        return built
+
+    def clear(self) -> None:
+        """Drop every structure (and reset the counters)."""
+        with self._lock:
+            self._kept.clear()
+            self.hits = self.misses = 0
+
+    def __len__(self) -> int:
+        return len(self._kept)
+
+
+STRUCTURES = StructurePool()
+"""The process's pool, used by every :class:`~manopt_lie.optim.LeastSquaresProblem`."""
+
+
+def clear_caches() -> None:
+    """Forget every pooled analysis and structure: the next solve of any pattern builds its
+    structure and analyses its pattern anew (a benchmark's cold start, as a peer's)."""
+    ANALYSES.clear()
+    STRUCTURES.clear()

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from ..errors import NonFiniteError, ShapeError
 from ..linalg import DENSE_MAX, BlockStructure
+from ..linalg._analyses import STRUCTURES, structure_key
 from ..manifolds import Blocks, Power
 from ._values import check_result, same_point, snapshot
 from .losses import RobustLoss, Trivial, parse_loss
@@ -528,7 +529,11 @@ class LeastSquaresProblem(Problem):
             if self._structure is None:
                 shapes = [(v, r.shape[-1]) for v, r in zip(self._variables, residuals, strict=True)]
                 dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
-                structure = BlockStructure(dims, shapes, dense=int(dims.sum()) <= DENSE_MAX)
+                dense = int(dims.sum()) <= DENSE_MAX
+                # Another problem of the same graph (a repeated solve, other measurements) built it already.
+                structure = STRUCTURES.get(
+                    structure_key(dims, shapes, dense), lambda: BlockStructure(dims, shapes, dense=dense)
+                )
                 self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
                 self._structure = structure
             return self._structure

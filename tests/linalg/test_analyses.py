@@ -1,15 +1,20 @@
-"""The pool of symbolic analyses: keys by pattern (or by a structure's blocks), lending, bounds."""
+"""The pools of symbolic work: analyses keyed by pattern (or by a structure's blocks), lent, bounded;
+block structures keyed by a graph, shared among its problems, bounded."""
 
 from __future__ import annotations
 
 import gc
+import threading
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manopt_lie.linalg import BlockStructure, CholeskySolver
-from manopt_lie.linalg._analyses import ANALYSES, AnalysisPool, pattern_key
+from manopt_lie.linalg import BlockStructure, CholeskySolver, clear_caches
+from manopt_lie.linalg._analyses import ANALYSES, STRUCTURES, AnalysisPool, StructurePool, pattern_key, structure_key
+from manopt_lie.optim import LeastSquaresProblem, LevenbergMarquardt
+from manopt_lie.problems import synthetic
 
 from .helpers import pose_graph
 
@@ -18,9 +23,9 @@ BACKENDS = CholeskySolver.available_backends()
 
 @pytest.fixture(autouse=True)
 def empty_pool():
-    ANALYSES.clear()
+    clear_caches()
     yield
-    ANALYSES.clear()
+    clear_caches()
 
 
 def _solve(structure: BlockStructure, blocks, residuals, backend: str) -> tuple[CholeskySolver, np.ndarray]:
@@ -106,5 +111,90 @@ def test_the_pool_keeps_at_most_its_bounds():
     assert pool.acquire(("b", 3, 101, "", b"big")) is None
     pool.release(keys[3], "backend 3")  # 20 + 40 = 60 ≤ 100 entries
     assert len(pool) == 2 and (pool.hits, pool.misses) == (1, 2)
+    pool.clear()
+    assert len(pool) == 0 and pool.hits == pool.misses == 0
+
+
+def _grid(seed: int, rows: int = 6):
+    return synthetic.grid2d(rows, 6, loop_closure_probability=1.0, seed=seed).graph  # every closure: one edge set
+
+
+def _anchored(graph, anchor: int) -> LeastSquaresProblem:
+    """The graph's geodesic problem with another variable fixed."""
+    return LeastSquaresProblem(graph.manifold, list(graph.problem("geodesic").factors), fixed=[anchor])
+
+
+@pytest.mark.parametrize("rows", [3, 12])  # 54 unknowns (dense H) and 216 (sparse)
+def test_problems_of_one_graph_share_its_structure_and_solve_alike(rows):
+    """A second problem of the same edges — here with other measurements and another anchor —
+    takes the first one's structure from the pool, and its solve equals a cold one's."""
+    graph, other = _grid(0, rows), _grid(1, rows)
+    assert np.array_equal(graph.edges, other.edges) and not np.allclose(graph.measurements.as_matrix(), other.measurements.as_matrix())
+    first = graph.problem("geodesic")
+    x0 = graph.chordal_initialization()
+    LevenbergMarquardt().solve(first, x0)
+    assert (STRUCTURES.misses, STRUCTURES.hits) == (1, 0)
+    second = _anchored(other, 3)
+    y0 = other.chordal_initialization()
+    warm = LevenbergMarquardt().solve(second, y0)
+    assert second.structure is first.structure and STRUCTURES.hits == 1
+    clear_caches()
+    cold_problem = _anchored(other, 3)
+    cold = LevenbergMarquardt().solve(cold_problem, y0)
+    assert cold_problem.structure is not first.structure
+    assert warm.nit == cold.nit and warm.fun == cold.fun  # the same arithmetic, bit for bit
+
+
+def test_problems_in_threads_share_one_structure():
+    """Problems of one graph solved in threads at once: one structure (built once), every solve
+    as the one alone."""
+    graph = _grid(2, 8)
+    x0 = graph.chordal_initialization()
+    alone = LevenbergMarquardt().solve(graph.problem("geodesic"), x0)
+    problems = [graph.problem("geodesic") for _ in range(4)]
+    results: list = [None] * 4
+
+    def run(i: int) -> None:
+        results[i] = LevenbergMarquardt().solve(problems[i], x0)
+
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(p.structure is problems[0].structure for p in problems) and STRUCTURES.misses == 1
+    assert all(r.fun == alone.fun and r.nit == alone.nit for r in results)
+
+
+def test_structure_keys_tell_graphs_apart():
+    """The key of the structure's inputs changes with the dimensions, the edges (also edges of the
+    same bytes in another shape), a residual length and the dense flag."""
+    dims = np.array([3, 3, 3, 3])
+    chain = np.array([[0, 1], [1, 2], [2, 3]])
+    flat = chain.reshape(-1, 1)  # the same bytes as unary edges
+    keys = {
+        structure_key(dims, [(chain, 3)], False),
+        structure_key(np.array([2, 2, 2, 2]), [(chain, 3)], False),
+        structure_key(dims, [(chain[::-1].copy(), 3)], False),
+        structure_key(dims, [(flat, 3)], False),
+        structure_key(dims, [(chain, 2)], False),
+        structure_key(dims, [(chain, 3)], True),
+        structure_key(dims, [(chain, 3), (chain, 3)], False),
+    }
+    assert len(keys) == 7
+    assert structure_key(dims, [(chain, 3)], False) == structure_key(dims.copy(), [(chain.copy(), 3)], False)
+
+
+def test_the_structure_pool_keeps_at_most_its_bounds():
+    pool = StructurePool(max_kept=2, max_kept_nnz=100)
+    made = [SimpleNamespace(nnz=10 * (i + 1)) for i in range(4)]
+    for i in range(3):
+        assert pool.get(bytes([i]), lambda i=i: made[i]) is made[i]
+    assert len(pool) == 2 and pool.misses == 3  # the least recently used dropped
+    assert pool.get(bytes([2]), lambda: None) is made[2] and pool.hits == 1  # type: ignore[arg-type,return-value]
+    big = SimpleNamespace(nnz=101)
+    assert pool.get(b"big", lambda: big) is big and b"big" not in pool._kept  # beyond the bound alone: not kept
+    pool.get(bytes([3]), lambda: made[3])  # 30 + 40 ≤ 100: kept beside the most recent
+    assert set(pool._kept) == {bytes([2]), bytes([3])}
     pool.clear()
     assert len(pool) == 0 and pool.hits == pool.misses == 0
