@@ -129,7 +129,8 @@ def test_problems_of_one_graph_share_its_structure_and_solve_alike(rows):
     """A second problem of the same edges — here with other measurements and another anchor —
     takes the first one's structure from the pool, and its solve equals a cold one's."""
     graph, other = _grid(0, rows), _grid(1, rows)
-    assert np.array_equal(graph.edges, other.edges) and not np.allclose(graph.measurements.as_matrix(), other.measurements.as_matrix())
+    assert np.array_equal(graph.edges, other.edges)
+    assert not np.allclose(graph.measurements.as_matrix(), other.measurements.as_matrix())
     first = graph.problem("geodesic")
     x0 = graph.chordal_initialization()
     LevenbergMarquardt().solve(first, x0)
