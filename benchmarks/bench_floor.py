@@ -6,7 +6,9 @@ Run from the repository root (GTSAM for its column)::
     python benchmarks/bench_floor.py --dataset smallGrid3D --repeat 50 --json out.json
 
 The *bare* solver takes the iterations of ``LevenbergMarquardt()`` — ``(H + λI)δ = −g`` with
-``λ₀ = 1e-8``, ``λ ÷ 10`` on a decrease and ``× 10`` otherwise, GTSAM's stopping rule — on the
+``λ₀ = 1e-8``, ``λ ÷ 10`` on a decrease, GTSAM's stopping rule; on a failure ``× 10`` where ours
+multiplies by a doubling ``ν``, and ``I`` where ours damps ``s·I`` with the cost scale ``s ≤ 1``
+(equal on tinyGrid3D: ``s = 1``, no failure) — on the
 same native residual kernels and retraction, with ``H = JᵀJ`` from one dense Jacobian and
 LAPACK's Cholesky, and nothing else: no validation of the start, no history, no check of the
 factorization or of the solution, no robust loss, one factor type. It is not a solver to use;
