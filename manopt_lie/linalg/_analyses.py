@@ -30,10 +30,13 @@ import hashlib
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
-from typing import Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from .structure import BlockStructure
 
 __all__ = ["ANALYSES", "STRUCTURES", "AnalysisPool", "StructurePool", "clear_caches", "pattern_key", "structure_key"]
 
@@ -41,6 +44,7 @@ MAX_IDLE = 8
 MAX_IDLE_NNZ = 4_000_000
 
 Key = tuple[str, int, int, str, bytes]
+V = TypeVar("V")
 
 
 def digest(*arrays: NDArray[Any]) -> bytes:
@@ -61,6 +65,12 @@ def pattern_key(
     dtypes = f"{indptr.dtype.str}{indices.dtype.str}"
     key = digest(indptr, indices) if blocks is None else blocks
     return backend, int(indptr.size - 1), int(indices.size), dtypes, key
+
+
+def _evict_oldest(entries: OrderedDict[Any, V], nnz: Callable[[V], int], max_count: int, max_nnz: int) -> None:
+    """Drop the oldest entries until at most ``max_count`` remain holding ``max_nnz`` entries of ``H`` in all."""
+    while len(entries) > max_count or sum(nnz(v) for v in entries.values()) > max_nnz:
+        entries.popitem(last=False)
 
 
 class AnalysisPool:
@@ -96,8 +106,7 @@ class AnalysisPool:
         with self._lock:
             self._ticket += 1
             self._idle[self._ticket] = (key, backend)
-            while len(self._idle) > self.max_idle or sum(k[2] for k, _ in self._idle.values()) > self.max_idle_nnz:
-                self._idle.popitem(last=False)
+            _evict_oldest(self._idle, lambda entry: entry[0][2], self.max_idle, self.max_idle_nnz)
 
     def clear(self) -> None:
         """Drop every idle backend (and reset the counters)."""
@@ -111,14 +120,6 @@ class AnalysisPool:
 
 ANALYSES = AnalysisPool()
 """The process's pool, used by every :class:`~manopt_lie.linalg.CholeskySolver`."""
-
-
-class _Sized(Protocol):
-    @property
-    def nnz(self) -> int: ...
-
-
-S = TypeVar("S", bound=_Sized)
 
 
 def structure_key(dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool) -> bytes:
@@ -142,25 +143,24 @@ class StructurePool:
 
     def __init__(self, max_kept: int = MAX_IDLE, max_kept_nnz: int = MAX_IDLE_NNZ) -> None:
         self.max_kept, self.max_kept_nnz = max_kept, max_kept_nnz
-        self._kept: OrderedDict[bytes, Any] = OrderedDict()
+        self._kept: OrderedDict[bytes, BlockStructure] = OrderedDict()
         self._lock = threading.Lock()
         self.hits = self.misses = 0
 
-    def get(self, key: bytes, build: Callable[[], S]) -> S:
+    def get(self, key: bytes, build: Callable[[], BlockStructure]) -> BlockStructure:
         """The structure of ``key``: the pooled one, else ``build()``'s (then pooled if small enough)."""
         with self._lock:
             found = self._kept.get(key)
             if found is not None:
                 self._kept.move_to_end(key)
                 self.hits += 1
-                return found  # type: ignore[no-any-return]
+                return found
             self.misses += 1
         built = build()  # outside the lock: a large structure takes seconds
         if built.nnz <= self.max_kept_nnz:
             with self._lock:
                 self._kept[key] = built
-                while len(self._kept) > self.max_kept or sum(s.nnz for s in self._kept.values()) > self.max_kept_nnz:
-                    self._kept.popitem(last=False)
+                _evict_oldest(self._kept, lambda structure: structure.nnz, self.max_kept, self.max_kept_nnz)
         return built
 
     def clear(self) -> None:

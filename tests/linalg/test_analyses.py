@@ -10,6 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from manopt_lie.linalg import BlockStructure, CholeskySolver, clear_caches
 from manopt_lie.linalg._analyses import ANALYSES, STRUCTURES, AnalysisPool, StructurePool, pattern_key, structure_key
@@ -199,3 +201,17 @@ def test_the_structure_pool_keeps_at_most_its_bounds():
     assert set(pool._kept) == {bytes([2]), bytes([3])}
     pool.clear()
     assert len(pool) == 0 and pool.hits == pool.misses == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 5), st.integers(0, 5)), min_size=1, max_size=6),
+    st.lists(st.tuples(st.integers(0, 5), st.integers(0, 5)), min_size=1, max_size=6),
+    st.integers(1, 3),
+    st.integers(1, 3),
+)
+def test_structure_keys_agree_exactly_when_the_inputs_do(edges_a, edges_b, r_a, r_b):
+    dims = np.full(6, 3)
+    a, b = np.array(edges_a), np.array(edges_b)
+    same = a.shape == b.shape and np.array_equal(a, b) and r_a == r_b
+    assert (structure_key(dims, [(a, r_a)], False) == structure_key(dims, [(b, r_b)], False)) == same
