@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Native", "Pinned", "compile_functions", "enabled"]
+__all__ = ["Native", "Pinned", "compile_functions", "enabled", "load"]
 
 FloatArray = NDArray[np.float64]
 FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -102,6 +102,12 @@ class Native:
         self._pointers_in, self._pointers_out = ctypes.c_void_p * len(sizes_in), ctypes.c_void_p * len(sizes_out)
         self._strides_in = ctypes.c_longlong * len(sizes_in)
         self._strides_out = (ctypes.c_longlong * len(sizes_out))(*sizes_out)
+
+    @property
+    def address(self) -> int:
+        """The batch driver's address, for compiled code that calls it (``int name_batch(long long m,
+        const double** arg, const long long* arg_stride, double** res, const long long* res_stride)``)."""
+        return int(ctypes.cast(self._driver, ctypes.c_void_p).value or 0)
 
     def __call__(self, m: int, args: Sequence[FloatArray | Pinned], outs: Sequence[FloatArray]) -> None:
         pointers, strides = [], []
@@ -176,9 +182,9 @@ def library_name(source: str) -> str:
     return f"kernels-{hashlib.sha256(key.encode()).hexdigest()[:24]}.so"
 
 
-def _load(source: str) -> Any:
-    """The library of ``source``: from the cache, else built into it (or, when the cache cannot
-    be used, into a private directory); ``None`` if it cannot be built."""
+def load(source: str) -> Any:
+    """The library of the C ``source`` (a :class:`ctypes.CDLL`): from the cache, else built into it
+    (or, when the cache cannot be used, into a private directory); ``None`` if it cannot be built."""
     key = library_name(source)
     with _LOCK:
         if key not in _LIBRARIES:
@@ -204,7 +210,7 @@ def compile_functions(functions: Sequence[Any]) -> dict[str, Native] | None:
     into one library, by name; ``None`` when native code cannot be built here."""
     if not enabled():
         return None
-    library = _load(_source(functions))
+    library = load(_source(functions))
     if library is None:
         return None
     natives = {}

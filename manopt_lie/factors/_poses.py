@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from types import ModuleType
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +34,7 @@ from .._native import Pinned
 from ..lie import SE2, SE3, LieGroup, _se2, _se3
 from ..optim import SideBySide
 
-__all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "between_kernel"]
+__all__ = ["EDGE_CHUNK", "FUSED_GROUPS", "NativeBetween", "between_kernel"]
 
 FloatArray = NDArray[np.float64]
 
@@ -46,6 +46,18 @@ edges, 468 against 1197 ms)."""
 
 FUSED_GROUPS: dict[type[LieGroup], tuple[ModuleType, int]] = {SE2: (_se2, 2), SE3: (_se3, 3)}
 """Groups with a fused between kernel: their array kernels and the dimension ``d`` of ``SE(d)``."""
+
+
+class NativeBetween(NamedTuple):
+    """What compiled code needs to evaluate a between kernel's edges itself (the compiled
+    Levenberg-Marquardt of :mod:`manopt_lie.optim._small_lm`): its group and its constants as the
+    native kernels read them. A kernel's residual function carries it as ``native_between``."""
+
+    group: type[LieGroup]
+    z_inv: Pinned
+    """``Z⁻¹``, ``(m, (d+1)²)``: each edge's matrix, row after row."""
+    sqrt_information: Pinned | None
+    """``L``, ``(k²,)`` shared or ``(m, k²)`` per edge, row after row; ``None`` for unit noise."""
 
 
 def _inverse(m: FloatArray, d: int) -> FloatArray:
@@ -136,4 +148,5 @@ def between_kernel(group: type[LieGroup], z_inv: FloatArray, sqrt_information: F
                 one_pass(mi, mj, a, min(a + EDGE_CHUNK, m), r_out, j_out)
         return r_out if j_out is None else (r_out, SideBySide(j_out, (k, k)))
 
+    residual.native_between = NativeBetween(group, z_flat[0], l_flat[0] if l_flat else None)  # type: ignore[attr-defined]
     return residual

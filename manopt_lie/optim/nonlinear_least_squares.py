@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..linalg import LinearSolver, SingularSystemError, get_linear_solver
+from . import _small_lm
 from .least_squares_problem import LeastSquaresProblem, Linearization
 from .line_search import armijo
 from .optimizer import Optimizer, Run, StoppingCriteria
@@ -317,6 +318,12 @@ class LevenbergMarquardt(NonlinearLeastSquares):
             raise ValueError(f"LevenbergMarquardt: damping_factor must be > 1, got {damping_factor}")
         self.initial_damping, self.max_damping = initial_damping, max_damping
         self.damping, self.damping_factor = damping, damping_factor
+
+    def _solve(self, run: Run, x0: Any) -> OptimizeResult:
+        """The iterations in compiled code where the problem is a small pose graph
+        (:mod:`._small_lm`), else the Python loop."""
+        result = _small_lm.solve(self, run, x0)
+        return result if result is not None else super()._solve(run, x0)
 
     def _initial_state(self, lin: Linearization) -> _Damping:
         return _Damping(self.initial_damping, self.damping_factor)

@@ -251,12 +251,16 @@ class Run:
     def record(self, x: Any, f: float, grad_norm: float, step: float = math.nan, **extra: float) -> bool:
         """Record an iterate; ``True`` if the callback asks to stop (returns true or
         raises ``StopIteration``)."""
+        return self.record_at(self.elapsed(), x, f, grad_norm, step, **extra)
+
+    def record_at(self, now: float, x: Any, f: float, grad_norm: float, step: float = math.nan, **extra: float) -> bool:
+        """:meth:`record` of an iterate that ended ``now`` seconds into the run (iterations run
+        elsewhere, e.g. in compiled code, and recorded afterwards)."""
         if not self._records:
             self.scale = min(1.0, max(abs(f), grad_norm * self.manifold.typical_dist))
             self.grad_tol = max(self.stopping.grad_rtol * grad_norm, self.stopping.grad_atol * self.scale)
             if self.progress is not None:
                 self.progress.start(self.problem, self.stopping, self.grad_tol)
-        now = self.elapsed()
         self._records.append((f, grad_norm, step, now))
         self._x = x
         for key, value in extra.items():

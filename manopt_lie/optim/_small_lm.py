@@ -1,0 +1,155 @@
+"""Levenberg-Marquardt on a small pose graph, every iteration in compiled code (``small_lm.c``).
+
+On a system of a few dozen unknowns a Python iteration is almost all calls — validation,
+bookkeeping, a dozen NumPy calls of a few microseconds each — and GTSAM's whole solve of a
+9-pose graph takes 0.4 ms. A pose graph whose one factor is the library's between factor on
+SE(2) or SE(3) with native kernels, of at most :data:`~manopt_lie.linalg.DENSE_MAX` unknowns,
+is therefore solved by ``small_lm.c``: the iterations of :class:`LevenbergMarquardt` — the
+same damping ``λ·s·I`` and its updates, the same gain ratio, the same stopping rule and collapse
+test — on a dense ``H`` with its own Cholesky factorization, calling the factor's compiled
+kernels and the compiled retraction through their addresses. Its history is recorded into the
+run afterwards, with the times at which the iterations ended.
+
+The iterates are those of the Python loop up to round-off (sums in another order); one check is
+left out: the dense solve is checked on its right-hand side (finite, ``‖(H + λsI)δ + g‖ ≤
+rtol·‖g‖``, ``−gᵀδ > 0``) but not on a random probe as well. Anything the compiled loop does not
+mirror — a start that is not finite (whose error the Python path words), a step of a size the
+retraction computes by other kernels, a kernel that fails — makes it return before it changes
+anything, and the Python loop runs instead; so does any problem or setting outside its scope
+(:func:`plan`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from importlib import resources
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .. import _kernels, _native
+from ..lie import SE2, SE3
+from ..lie._series import HUGE
+from ..linalg import DENSE_MAX, CholeskySolver
+from ..linalg.fill import AutoSolver
+from ..manifolds import LieGroupManifold, Power
+from .least_squares_problem import LeastSquaresProblem
+from .losses import Trivial
+from .optimizer import ROUNDOFF, Run
+from .result import OptimizeResult, Status
+
+if TYPE_CHECKING:
+    from .nonlinear_least_squares import LevenbergMarquardt
+
+MAX_RECORDS = 100_000
+"""The most iterations (``max_iterations``) the compiled loop keeps a history for."""
+
+_c_double, _c_long, _c_void = ctypes.c_double, ctypes.c_longlong, ctypes.c_void_p
+
+
+class _Problem(ctypes.Structure):
+    """``lm_problem`` of ``small_lm.c``, field for field."""
+
+    _fields_ = [
+        *[(name, _c_long) for name in ("n", "m", "s2", "k")],
+        *[(name, _c_void) for name in ("edges", "fixed", "z", "sqrt_info")],
+        ("sqrt_info_stride", _c_long),
+        *[(name, _c_void) for name in ("between", "log", "rplus")],
+        *[(name, _c_double) for name in ("lam0", "lam_max", "kappa", "rtol", "grad_rtol", "grad_atol", "min_step",
+                                         "rel_decrease", "typical_dist", "roundoff", "huge")],  # fmt: skip
+        ("max_iterations", _c_long),
+        *[(name, _c_void) for name in ("x", "history")],
+        *[(name, _c_long) for name in ("records", "nfev", "ngev", "rejected", "moved")],
+        ("status", ctypes.c_int),
+    ]
+
+
+_LIBRARY: list[Any] = []  # [the loaded library, or None where it cannot be built], once loaded
+
+
+def _library() -> Any:
+    """``small_lm.c`` compiled (once per machine, like the kernels), or ``None``."""
+    if not _LIBRARY:
+        library = None
+        if _native.enabled():
+            library = _native.load(resources.files(__package__).joinpath("small_lm.c").read_text())
+        if library is not None:
+            library.small_lm.restype = ctypes.c_int
+            library.small_lm.argtypes = [ctypes.POINTER(_Problem)]
+        _LIBRARY.append(library)
+    return _LIBRARY[0]
+
+
+def _rtol(optimizer: LevenbergMarquardt) -> float | None:
+    """The relative residual the dense solve is checked to, if the optimizer's linear solver is the
+    one a small system gets: the automatic choice, or a Cholesky solver that may go dense."""
+    solver = optimizer.linear_solver
+    if type(solver) is AutoSolver:
+        return CholeskySolver().rtol
+    if type(solver) is CholeskySolver and solver.backend in ("auto", "dense"):
+        return solver.rtol
+    return None
+
+
+def plan(optimizer: LevenbergMarquardt, run: Run) -> _Problem | None:
+    """The compiled loop's problem for this run, or ``None`` if the run is outside its scope: one
+    between factor of SE(2)/SE(3) with native kernels, no robust loss, ``Power(G, n)``, ``2 ≤ n``,
+    at most :data:`~manopt_lie.linalg.DENSE_MAX` unknowns; damping ``s·I`` and the default linear
+    solver; no callback, no progress table, no time limit, at most :data:`MAX_RECORDS` iterations."""
+    problem, stopping = run.problem, run.stopping
+    if not isinstance(problem, LeastSquaresProblem) or len(problem.factors) != 1:
+        return None
+    if run.callback is not None or run.progress is not None or stopping.max_time != math.inf:
+        return None
+    rtol = _rtol(optimizer)
+    if optimizer.damping != "identity" or rtol is None or stopping.max_iterations > MAX_RECORDS:
+        return None
+    manifold = problem.manifold
+    if not (isinstance(manifold, Power) and len(manifold.shape) == 1 and isinstance(manifold.manifold, LieGroupManifold)):
+        return None
+    group, n = manifold.manifold.group, manifold.shape[0]
+    (factor,) = problem.factors
+    spec = getattr(factor.residual, "native_between", None)
+    if spec is None or spec.group is not group or manifold.manifold.geometry != "group" or n < 2:
+        return None
+    if group not in (SE2, SE3) or n * group.dim > DENSE_MAX or type(factor.robust_loss) is not Trivial:
+        return None
+    whitened = spec.sqrt_information is not None
+    kernels = [_kernels.native_kernel(group, ("whitened " if whitened else "") + kind) for kind in ("between", "log")]
+    kernels.append(_kernels.native_kernel(group, "rplus"))
+    if any(k is None for k in kernels) or _library() is None:
+        return None
+    edges = np.ascontiguousarray(factor.variables, dtype=np.int64)
+    fixed = np.ascontiguousarray(problem.fixed, dtype=np.uint8)
+    sqrt_info = spec.sqrt_information
+    c = _Problem(
+        n, len(edges), spec.z_inv.shape[1], group.dim,
+        edges.ctypes.data, fixed.ctypes.data, spec.z_inv.address, sqrt_info.address if whitened else None,
+        (0 if len(sqrt_info.shape) == 1 else sqrt_info.shape[1]) if whitened else 0,
+        *[k.address for k in kernels],  # type: ignore[union-attr]
+        optimizer.initial_damping, optimizer.max_damping, optimizer.damping_factor, rtol,
+        stopping.grad_rtol, stopping.grad_atol, stopping.min_step, stopping.rel_cost_decrease or 0.0,
+        manifold.typical_dist, ROUNDOFF, HUGE, stopping.max_iterations,
+    )  # fmt: skip
+    c._keep = (edges, fixed)  # the arrays the pointers point into, alive as long as the struct
+    return c
+
+
+def solve(optimizer: LevenbergMarquardt, run: Run, x0: Any) -> OptimizeResult | None:
+    """The run by the compiled loop, or ``None`` (nothing recorded) if the Python loop must do it."""
+    c = plan(optimizer, run)
+    if c is None:
+        return None
+    x = np.array(x0.as_matrix(), dtype=np.float64, order="C")  # a copy: the compiled loop moves it
+    history = np.empty((c.max_iterations + 1, 6))
+    c.x, c.history = x.ctypes.data, history.ctypes.data
+    status = _library().small_lm(ctypes.byref(c))
+    if status < 0:  # outside what it mirrors: the Python loop, from the start
+        return None
+    x_final = type(x0)._wrap(x) if c.moved else x0
+    rows = history[: c.records].tolist()
+    for i, (f, grad_norm, step, at, damping, rho) in enumerate(rows):  # the first: the start, no step
+        run.record_at(at - run.start, x_final, f, grad_norm, step, **({"damping": damping, "rho": rho} if i else {}))
+    run.nfev, run.ngev, run.rejected_nonfinite = c.nfev, c.ngev, c.rejected
+    return run.result(x_final, Status(status))
