@@ -48,20 +48,24 @@ MAX_RECORDS = 100_000
 _c_double, _c_long, _c_void = ctypes.c_double, ctypes.c_longlong, ctypes.c_void_p
 
 
+def _fields(kind: Any, names: str) -> list[tuple[str, Any]]:
+    return [(name, kind) for name in names.split()]
+
+
 class _Problem(ctypes.Structure):
     """``lm_problem`` of ``small_lm.c``, field for field."""
 
     _fields_ = [
-        *[(name, _c_long) for name in ("n", "m", "s2", "k")],
-        *[(name, _c_void) for name in ("edges", "fixed", "z", "sqrt_info")],
-        ("sqrt_info_stride", _c_long),
-        *[(name, _c_void) for name in ("between", "log", "rplus")],
-        *[(name, _c_double) for name in ("lam0", "lam_max", "kappa", "rtol", "grad_rtol", "grad_atol", "min_step",
-                                         "rel_decrease", "typical_dist", "roundoff", "huge")],  # fmt: skip
-        ("max_iterations", _c_long),
-        *[(name, _c_void) for name in ("x", "history")],
-        *[(name, _c_long) for name in ("records", "nfev", "ngev", "rejected", "moved")],
-        ("status", ctypes.c_int),
+        *_fields(_c_long, "n m s2 k"),
+        *_fields(_c_void, "edges fixed z sqrt_info"),
+        *_fields(_c_long, "sqrt_info_stride"),
+        *_fields(_c_void, "between log rplus"),
+        *_fields(_c_double, "lam0 lam_max kappa rtol"),
+        *_fields(_c_double, "grad_rtol grad_atol min_step rel_decrease typical_dist roundoff huge"),
+        *_fields(_c_long, "max_iterations"),
+        *_fields(_c_void, "x history"),
+        *_fields(_c_long, "records nfev ngev rejected moved"),
+        *_fields(ctypes.c_int, "status"),
     ]
 
 
@@ -106,7 +110,7 @@ def plan(optimizer: LevenbergMarquardt, run: Run) -> _Problem | None:
     if optimizer.damping != "identity" or rtol is None or stopping.max_iterations > MAX_RECORDS:
         return None
     manifold = problem.manifold
-    if not (isinstance(manifold, Power) and len(manifold.shape) == 1 and isinstance(manifold.manifold, LieGroupManifold)):
+    if not isinstance(manifold, Power) or not isinstance(manifold.manifold, LieGroupManifold) or manifold.shape[1:]:
         return None
     group, n = manifold.manifold.group, manifold.shape[0]
     (factor,) = problem.factors
@@ -116,9 +120,9 @@ def plan(optimizer: LevenbergMarquardt, run: Run) -> _Problem | None:
     if group not in (SE2, SE3) or n * group.dim > DENSE_MAX or type(factor.robust_loss) is not Trivial:
         return None
     whitened = spec.sqrt_information is not None
-    kernels = [_kernels.native_kernel(group, ("whitened " if whitened else "") + kind) for kind in ("between", "log")]
-    kernels.append(_kernels.native_kernel(group, "rplus"))
-    if any(k is None for k in kernels) or _library() is None:
+    kinds = [("whitened " if whitened else "") + kind for kind in ("between", "log")] + ["rplus"]
+    kernels = [k for k in (_kernels.native_kernel(group, kind) for kind in kinds) if k is not None]
+    if len(kernels) != len(kinds) or _library() is None:
         return None
     edges = np.ascontiguousarray(factor.variables, dtype=np.int64)
     fixed = np.ascontiguousarray(problem.fixed, dtype=np.uint8)
@@ -127,7 +131,7 @@ def plan(optimizer: LevenbergMarquardt, run: Run) -> _Problem | None:
         n, len(edges), spec.z_inv.shape[1], group.dim,
         edges.ctypes.data, fixed.ctypes.data, spec.z_inv.address, sqrt_info.address if whitened else None,
         (0 if len(sqrt_info.shape) == 1 else sqrt_info.shape[1]) if whitened else 0,
-        *[k.address for k in kernels],  # type: ignore[union-attr]
+        *[k.address for k in kernels],
         optimizer.initial_damping, optimizer.max_damping, optimizer.damping_factor, rtol,
         stopping.grad_rtol, stopping.grad_atol, stopping.min_step, stopping.rel_cost_decrease or 0.0,
         manifold.typical_dist, ROUNDOFF, HUGE, stopping.max_iterations,
@@ -144,12 +148,13 @@ def solve(optimizer: LevenbergMarquardt, run: Run, x0: Any) -> OptimizeResult | 
     x = np.array(x0.as_matrix(), dtype=np.float64, order="C")  # a copy: the compiled loop moves it
     history = np.empty((c.max_iterations + 1, 6))
     c.x, c.history = x.ctypes.data, history.ctypes.data
+    entered = run.elapsed()  # the compiled loop's times count from its entry
     status = _library().small_lm(ctypes.byref(c))
     if status < 0:  # outside what it mirrors: the Python loop, from the start
         return None
     x_final = type(x0)._wrap(x) if c.moved else x0
     rows = history[: c.records].tolist()
     for i, (f, grad_norm, step, at, damping, rho) in enumerate(rows):  # the first: the start, no step
-        run.record_at(at - run.start, x_final, f, grad_norm, step, **({"damping": damping, "rho": rho} if i else {}))
+        run.record_at(entered + at, x_final, f, grad_norm, step, **({"damping": damping, "rho": rho} if i else {}))
     run.nfev, run.ngev, run.rejected_nonfinite = c.nfev, c.ngev, c.rejected
     return run.result(x_final, Status(status))

@@ -177,9 +177,10 @@ static double model_decrease(const double* H, const double* g, const double* del
   return -linear - 0.5 * quadratic;
 }
 
-static void record(lm_problem* p, double f, double gnorm, double step, double damping, double rho) {
+/* A row of the history; its time counts from origin, the loop's entry. */
+static void record(lm_problem* p, double origin, double f, double gnorm, double step, double damping, double rho) {
   double* row = p->history + p->records * COLUMNS;
-  row[0] = f, row[1] = gnorm, row[2] = step, row[3] = now(), row[4] = damping, row[5] = rho;
+  row[0] = f, row[1] = gnorm, row[2] = step, row[3] = now() - origin, row[4] = damping, row[5] = rho;
   p->records += 1;
 }
 
@@ -196,6 +197,7 @@ static int stop_reason(const lm_problem* p, double grad_tol, double scale, doubl
 }
 
 int small_lm(lm_problem* p) {
+  const double origin = now();
   const long long N = p->n * p->k, m = p->m, k = p->k, s2 = p->s2;
   const size_t point = (size_t)(p->n * s2), edges = (size_t)(m * s2);
   /* One block: H and the candidate H (swapped on acceptance), L, g, g', delta, tmp, the trial
@@ -216,7 +218,7 @@ int small_lm(lm_problem* p) {
   double f = ev.cost, gnorm = safe_norm(g, N);
   const double scale = fmin(1.0, fmax(fabs(f), gnorm * p->typical_dist));
   const double grad_tol = fmax(p->grad_rtol * gnorm, p->grad_atol * scale);
-  record(p, f, gnorm, NAN, NAN, NAN);
+  record(p, origin, f, gnorm, NAN, NAN, NAN);
   status = stop_reason(p, grad_tol, scale, NAN);
   double lam = p->lam0, nu = p->kappa;
   int keep = 1; /* the last trial was accepted: evaluate the next one's Jacobians too */
@@ -275,7 +277,7 @@ int small_lm(lm_problem* p) {
       if (lam >= p->lam_max) step_status = NO_PROGRESS, stalled = 1;
       else lam = fmin(lam * nu, p->lam_max), nu *= 2.0;
     }
-    record(p, f, gnorm, step, damping, rho);
+    record(p, origin, f, gnorm, step, damping, rho);
     status = step_status ? step_status : stop_reason(p, grad_tol, scale, f_prev);
     int fallback = stalled ? step_status : 0;
     if (status == STEP_SIZE && !step_status) fallback = NO_PROGRESS; /* a short accepted step */
