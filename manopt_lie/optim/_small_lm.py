@@ -22,6 +22,7 @@ anything, and the Python loop runs instead; so does any problem or setting outsi
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 from importlib import resources
 from typing import TYPE_CHECKING, Any
@@ -69,20 +70,16 @@ class _Problem(ctypes.Structure):
     ]
 
 
-_LIBRARY: list[Any] = []  # [the loaded library, or None where it cannot be built], once loaded
-
-
+@functools.cache
 def _library() -> Any:
     """``small_lm.c`` compiled (once per machine, like the kernels), or ``None``."""
-    if not _LIBRARY:
-        library = None
-        if _native.enabled():
-            library = _native.load(resources.files(__package__).joinpath("small_lm.c").read_text())
-        if library is not None:
-            library.small_lm.restype = ctypes.c_int
-            library.small_lm.argtypes = [ctypes.POINTER(_Problem)]
-        _LIBRARY.append(library)
-    return _LIBRARY[0]
+    if not _native.enabled():
+        return None
+    library = _native.load(resources.files(__package__).joinpath("small_lm.c").read_text())
+    if library is not None:
+        library.small_lm.restype = ctypes.c_int
+        library.small_lm.argtypes = [ctypes.POINTER(_Problem)]
+    return library
 
 
 def _rtol(optimizer: LevenbergMarquardt) -> float | None:

@@ -123,40 +123,42 @@ static double safe_norm(const double* v, long long n) {
   return a * sqrt(sum);
 }
 
-/* delta = -(H + shift I)^{-1} g by Cholesky (L in the lower triangle of work), checked as
- * CholeskySolver checks a solve: finite, |(H + shift I) delta + g| <= rtol |g|, -g^T delta > 0
- * (unless g = 0). 0 on success, 1 if the system counts as singular. */
+/* sum_i a_i b_i, in four running sums (the products of a row are independent: no chain of adds). */
+static double dot(const double* a, const double* b, long long n) {
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  long long i = 0;
+  for (; i + 4 <= n; i += 4) s0 += a[i] * b[i], s1 += a[i + 1] * b[i + 1], s2 += a[i + 2] * b[i + 2], s3 += a[i + 3] * b[i + 3];
+  for (; i < n; ++i) s0 += a[i] * b[i];
+  return (s0 + s1) + (s2 + s3);
+}
+
+/* delta = -(H + shift I)^{-1} g by Cholesky, checked as CholeskySolver checks a solve: finite,
+ * |(H + shift I) delta + g| <= rtol |g|, -g^T delta > 0 (unless g = 0). 0 on success, 1 if the
+ * system counts as singular. H is symmetric, so its rows are its columns: L is built row by row
+ * (L[i*N + j] = L_ij, j <= i) and every inner product runs along contiguous rows. */
 static int damped_solve(const double* H, const double* g, double shift, double rtol, long long N, double* L,
-                        double* delta, double* tmp) {
-  memcpy(L, H, N * N * sizeof(double));
-  for (long long j = 0; j < N; ++j) L[j * N + j] += shift;
-  for (long long j = 0; j < N; ++j) { /* column j of L (column-major: L[j*N + i] is entry (i, j)) */
-    double d = L[j * N + j];
-    for (long long q = 0; q < j; ++q) d -= L[q * N + j] * L[q * N + j];
-    if (!(d > 0.0) || !isfinite(d)) return 1;
-    d = sqrt(d);
-    L[j * N + j] = d;
-    for (long long i = j + 1; i < N; ++i) {
-      double s = L[j * N + i];
-      for (long long q = 0; q < j; ++q) s -= L[q * N + i] * L[q * N + j];
-      L[j * N + i] = s / d;
+                        double* delta, double* y) {
+  for (long long i = 0; i < N; ++i) {
+    double* row = L + i * N;
+    for (long long j = 0; j <= i; ++j) {
+      double s = H[i * N + j] + (i == j ? shift : 0.0) - dot(row, L + j * N, j);
+      if (i == j) {
+        if (!(s > 0.0) || !isfinite(s)) return 1;
+        row[i] = sqrt(s);
+      } else {
+        row[j] = s / L[j * N + j];
+      }
     }
   }
-  for (long long i = 0; i < N; ++i) { /* L y = -g */
-    double s = -g[i];
-    for (long long q = 0; q < i; ++q) s -= L[q * N + i] * tmp[q];
-    tmp[i] = s / L[i * N + i];
-  }
-  for (long long i = N - 1; i >= 0; --i) { /* L^T delta = y */
-    double s = tmp[i];
-    for (long long q = i + 1; q < N; ++q) s -= L[i * N + q] * delta[q];
-    delta[i] = s / L[i * N + i];
+  for (long long i = 0; i < N; ++i) y[i] = (-g[i] - dot(L + i * N, y, i)) / L[i * N + i]; /* L y = -g */
+  for (long long i = N - 1; i >= 0; --i) { /* L^T delta = y, column by column of L^T (rows of L) */
+    delta[i] = y[i] / L[i * N + i];
+    for (long long q = 0; q < i; ++q) y[q] -= L[i * N + q] * delta[i];
   }
   double residual = 0.0, b2 = 0.0, curvature = 0.0;
   for (long long i = 0; i < N; ++i) {
     if (!isfinite(delta[i])) return 1;
-    double s = shift * delta[i] + g[i];
-    for (long long j = 0; j < N; ++j) s += H[j * N + i] * delta[j];
+    double s = dot(H + i * N, delta, N) + shift * delta[i] + g[i];
     residual += s * s;
     b2 += g[i] * g[i];
     curvature -= g[i] * delta[i];
@@ -168,12 +170,7 @@ static int damped_solve(const double* H, const double* g, double shift, double r
 /* -g^T delta - 1/2 delta^T H delta: the decrease the Gauss-Newton model predicts. */
 static double model_decrease(const double* H, const double* g, const double* delta, long long N) {
   double linear = 0.0, quadratic = 0.0;
-  for (long long j = 0; j < N; ++j) {
-    double hd = 0.0;
-    for (long long i = 0; i < N; ++i) hd += H[j * N + i] * delta[i];
-    linear += g[j] * delta[j];
-    quadratic += delta[j] * hd;
-  }
+  for (long long i = 0; i < N; ++i) linear += g[i] * delta[i], quadratic += delta[i] * dot(H + i * N, delta, N);
   return -linear - 0.5 * quadratic;
 }
 
