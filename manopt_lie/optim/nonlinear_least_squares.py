@@ -284,6 +284,11 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     initializations take as many iterations as GTSAM's LM). ``history.extra``
     holds ``damping`` (the ``λ`` of the step) and ``rho``.
 
+    A small pose graph — one SE(2)/SE(3) between factor with native kernels, at most
+    :data:`~manopt_lie.linalg.DENSE_MAX` unknowns, the default damping and linear solver, no
+    callback, progress table or time limit — runs these iterations in compiled code
+    (:mod:`._small_lm`), with the same results up to round-off.
+
     Parameters
     ----------
     initial_damping, max_damping : float
