@@ -15,7 +15,7 @@ factorization or of the solution, no robust loss, one factor type. It is not a s
 it bounds from below what any Python loop over these kernels costs, so it tells how much of
 the library's time on a small system its machinery takes and whether a goal is within reach of
 trimming at all. (It told that one was not: ``LevenbergMarquardt`` now runs a small pose graph's
-iterations in compiled code, :mod:`manopt_lie.optim._small_lm`, so ``ours`` measures that loop
+iterations in compiled code, :mod:`manopt_lie.optim._small_system`, so ``ours`` measures that loop
 against the Python floor.) ``bare``, ``ours`` (``LevenbergMarquardt(rel_cost_decrease=1e-5)``, the pools
 of structures and analyses emptied before each run) and GTSAM's LM run in alternation from the chordal
 initialization, each problem built before its clock; the table gives the medians, the ratios

@@ -50,7 +50,7 @@ FUSED_GROUPS: dict[type[LieGroup], tuple[ModuleType, int]] = {SE2: (_se2, 2), SE
 
 class NativeBetween(NamedTuple):
     """What compiled code needs to evaluate a between kernel's edges itself (the compiled
-    Levenberg-Marquardt of :mod:`manopt_lie.optim._small_lm`): its group and its constants as the
+    least squares of :mod:`manopt_lie.optim._small_system`): its group and its constants as the
     native kernels read them. A kernel's residual function carries it as ``native_between``."""
 
     group: type[LieGroup]

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..linalg import LinearSolver, SingularSystemError, get_linear_solver
-from . import _small_lm
+from . import _small_system
 from .least_squares_problem import LeastSquaresProblem, Linearization
 from .line_search import armijo
 from .optimizer import Optimizer, Run, StoppingCriteria
@@ -80,6 +80,13 @@ def _no_descent(lin: Linearization) -> Status:
 class NonlinearLeastSquares(Optimizer):
     """The shared loop; subclasses implement :meth:`_step`.
 
+    A small pose graph — one SE(2)/SE(3) between factor with native kernels, at most
+    :data:`~manopt_lie.linalg.DENSE_MAX` unknowns, the default linear solver (and for
+    Levenberg-Marquardt the default damping), no callback, progress table or time limit — runs
+    the iterations of :class:`GaussNewton`, :class:`LevenbergMarquardt` and
+    :class:`~manopt_lie.optim.Dogleg` in compiled code (:mod:`._small_system`), with the same
+    results up to round-off.
+
     Parameters
     ----------
     linear_solver : {"auto", "cholesky", "pcg"}, LinearSolver or None
@@ -109,6 +116,9 @@ class NonlinearLeastSquares(Optimizer):
         problem = run.problem
         if not isinstance(problem, LeastSquaresProblem):
             raise TypeError(f"{type(self).__name__} needs a LeastSquaresProblem, got {type(problem).__name__}")
+        compiled = _small_system.solve(self, run, x0)  # a small pose graph's iterations in compiled code
+        if compiled is not None:
+            return compiled
         x = x0
         run.initial(x0)  # checks the factors' values and shapes at x0
         lin = problem.linearize(x0)  # the linearization validate made (remembered)
@@ -284,10 +294,6 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     initializations take as many iterations as GTSAM's LM). ``history.extra``
     holds ``damping`` (the ``λ`` of the step) and ``rho``.
 
-    A small pose graph — one SE(2)/SE(3) between factor with native kernels, at most
-    :data:`~manopt_lie.linalg.DENSE_MAX` unknowns, the default damping and linear solver, no
-    callback, progress table or time limit — runs these iterations in compiled code
-    (:mod:`._small_lm`), with the same results up to round-off.
 
     Parameters
     ----------
@@ -323,12 +329,6 @@ class LevenbergMarquardt(NonlinearLeastSquares):
             raise ValueError(f"LevenbergMarquardt: damping_factor must be > 1, got {damping_factor}")
         self.initial_damping, self.max_damping = initial_damping, max_damping
         self.damping, self.damping_factor = damping, damping_factor
-
-    def _solve(self, run: Run, x0: Any) -> OptimizeResult:
-        """The iterations in compiled code where the problem is a small pose graph
-        (:mod:`._small_lm`), else the Python loop."""
-        result = _small_lm.solve(self, run, x0)
-        return result if result is not None else super()._solve(run, x0)
 
     def _initial_state(self, lin: Linearization) -> _Damping:
         return _Damping(self.initial_damping, self.damping_factor)

@@ -1,6 +1,7 @@
-"""The compiled Levenberg-Marquardt of small pose graphs (``optim._small_lm``) against the Python
-loop it mirrors: the same statuses, counts, histories and points, up to round-off; and the Python
-loop wherever the compiled one is out of its scope or declines."""
+"""The compiled Gauss-Newton, Levenberg-Marquardt and dogleg of small pose graphs
+(``optim._small_system``) against the Python loops they mirror: the same statuses, counts,
+histories and points, up to round-off; and the Python loop wherever the compiled one is out of
+its scope or declines."""
 
 from __future__ import annotations
 
@@ -14,11 +15,12 @@ from manopt_lie import SE2, SE3, _kernels
 from manopt_lie.errors import NonFiniteError
 from manopt_lie.factors import between_factor
 from manopt_lie.factors.noise import Information, Isotropic
+from manopt_lie.linalg import SingularSystemError
 from manopt_lie.manifolds import LieGroupManifold, Power
-from manopt_lie.optim import LeastSquaresProblem, LevenbergMarquardt, Status, _small_lm
+from manopt_lie.optim import Dogleg, GaussNewton, LeastSquaresProblem, LevenbergMarquardt, Status, _small_system
 from manopt_lie.problems import g2o
 
-pytestmark = pytest.mark.skipif(_small_lm._library() is None, reason="no C compiler: nothing compiled to test")
+pytestmark = pytest.mark.skipif(_small_system._library() is None, reason="no C compiler: nothing compiled to test")
 
 
 def pose_graph(group, n=9, closures=6, seed=0, noise="unit", spread=0.1, fixed=(0,), measurement_noise=0.05):
@@ -47,7 +49,7 @@ def pose_graph(group, n=9, closures=6, seed=0, noise="unit", spread=0.1, fixed=(
 
 def python_loop(monkeypatch, optimizer, problem, x0):
     with monkeypatch.context() as m:
-        m.setattr(_small_lm, "solve", lambda *args: None)
+        m.setattr(_small_system, "solve", lambda *args: None)
         return optimizer.solve(problem, x0)
 
 
@@ -63,19 +65,23 @@ def assert_same_run(a, b):
     np.testing.assert_allclose(ha.cost, hb.cost, rtol=1e-9, atol=1e-12 * hb.cost[0])
     np.testing.assert_allclose(ha.grad_norm, hb.grad_norm, rtol=1e-6, atol=1e-9 * hb.grad_norm[0])
     np.testing.assert_allclose(ha.step, hb.step, rtol=1e-6, atol=1e-12)
-    assert sorted(ha.extra) == sorted(hb.extra) == ["damping", "rho"]
-    np.testing.assert_array_equal(ha.extra["damping"], hb.extra["damping"])
-    np.testing.assert_allclose(ha.extra["rho"], hb.extra["rho"], rtol=1e-6, atol=1e-9)
+    assert sorted(ha.extra) == sorted(hb.extra)
+    for key, expected in hb.extra.items():  # damping, alpha, radius, shift and kind exact; rho to round-off
+        np.testing.assert_allclose(ha.extra[key], expected, rtol=1e-6 if key in ("rho", "radius") else 0, atol=1e-9)
     np.testing.assert_allclose(a.x.as_matrix(), b.x.as_matrix(), atol=1e-9)
     assert a.fun == pytest.approx(b.fun, rel=1e-9, abs=1e-12)
 
 
+METHODS = [GaussNewton, LevenbergMarquardt, Dogleg]
+
+
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize(
     ("group", "n", "noise"),
     [(SE3, 9, "unit"), (SE3, 12, "isotropic"), (SE3, 8, "per-edge"), (SE2, 30, "unit"), (SE2, 20, "per-edge")],
 )
-def test_converges_as_the_python_loop(monkeypatch, group, n, noise):
-    optimizer = LevenbergMarquardt()
+def test_converges_as_the_python_loop(monkeypatch, method, group, n, noise):
+    optimizer = method()
     problem, x0 = pose_graph(group, n, noise=noise, seed=n)
     fast = compiled(optimizer, problem, x0)
     assert fast.status.converged and fast.nit >= 2
@@ -84,71 +90,90 @@ def test_converges_as_the_python_loop(monkeypatch, group, n, noise):
 
 def assert_same_until_roundoff(a, b):
     """Runs to the end of what double precision resolves: the same until the decreases are
-    round-off (where the gain ratio is noise, and the runs part), then the same status and cost."""
+    round-off (where gain ratios are noise, and the runs part), then the same status and cost."""
     cost = b.history.cost
     resolved = int(np.argmax(np.abs(np.diff(cost)) < 1e-9 * cost[0])) + 1  # iterations with a real decrease
     assert a.status is b.status and a.status.converged
     np.testing.assert_allclose(a.history.cost[:resolved], cost[:resolved], rtol=1e-9)
-    np.testing.assert_array_equal(a.history.extra["damping"][:resolved], b.history.extra["damping"][:resolved])
+    for key, expected in b.history.extra.items():
+        np.testing.assert_allclose(a.history.extra[key][:resolved], expected[:resolved], rtol=1e-6, atol=1e-9)
     assert a.fun == pytest.approx(b.fun, rel=1e-12)
 
 
 @pytest.mark.parametrize(
-    ("group", "settings", "spread", "status"),
-    [
-        (SE3, {}, 2.0, Status.COST_DECREASE),  # far from the optimum: rejected steps, the damping raised
-        (SE2, {}, 4.0, Status.COST_DECREASE),
-        (SE3, {"max_iterations": 3}, 2.0, Status.MAX_ITERATIONS),
-        (SE3, {"initial_damping": 1.0, "damping_factor": 3.0}, 2.0, Status.COST_DECREASE),
+    ("optimizer", "group", "spread", "status"),
+    [  # far from the optimum: rejected steps (LM, dogleg) or backtracking (GN)
+        (LevenbergMarquardt(), SE3, 2.0, Status.COST_DECREASE),
+        (LevenbergMarquardt(), SE2, 4.0, Status.COST_DECREASE),
+        (LevenbergMarquardt(max_iterations=3), SE3, 2.0, Status.MAX_ITERATIONS),
+        (LevenbergMarquardt(initial_damping=1.0, damping_factor=3.0), SE3, 2.0, Status.COST_DECREASE),
+        (GaussNewton(), SE3, 2.0, Status.COST_DECREASE),
+        (GaussNewton(), SE2, 4.0, Status.COST_DECREASE),
+        (GaussNewton(max_backtracks=0, sufficient_decrease=0.5), SE3, 2.0, Status.LINE_SEARCH_FAILED),
+        (Dogleg(), SE3, 2.0, Status.COST_DECREASE),
+        (Dogleg(), SE2, 4.0, Status.COST_DECREASE),
+        (Dogleg(initial_radius=1e-3), SE3, 2.0, Status.COST_DECREASE),  # the radius grows
     ],
+    ids=lambda v: type(v).__name__ if isinstance(v, (GaussNewton, LevenbergMarquardt, Dogleg)) else None,
 )
-def test_every_branch_as_the_python_loop(monkeypatch, group, settings, spread, status):
-    optimizer = LevenbergMarquardt(**settings)
+def test_every_branch_as_the_python_loop(monkeypatch, optimizer, group, spread, status):
     make = functools.partial(pose_graph, group, 10, closures=12, seed=2, spread=spread, measurement_noise=1.0)
     problem, x0 = make()
     fast = compiled(optimizer, problem, x0)
     assert fast.status is status
     assert_same_run(fast, python_loop(monkeypatch, optimizer, make()[0], x0))
-    if not settings:
-        assert (fast.history.extra["rho"][1:] <= 0).any(), "the case was meant to reject steps"
+    rho = fast.history.extra.get("rho")
+    if rho is not None and status is Status.COST_DECREASE and group is SE2:
+        assert (rho[1:] <= 0).any(), "the case was meant to reject steps"
 
 
 @pytest.mark.parametrize(
-    "settings",
+    "optimizer",
     [
-        {"rel_cost_decrease": 0.0, "grad_rtol": 0.0},  # to a collapse of the step
-        {"max_damping": 1e-6, "rel_cost_decrease": 0.0, "grad_rtol": 0.0, "grad_atol": 0.0},  # to the largest λ
+        GaussNewton(rel_cost_decrease=0.0, grad_rtol=0.0),  # to a collapse of the step
+        LevenbergMarquardt(rel_cost_decrease=0.0, grad_rtol=0.0),
+        LevenbergMarquardt(max_damping=1e-6, rel_cost_decrease=0.0, grad_rtol=0.0, grad_atol=0.0),  # the largest λ
+        Dogleg(rel_cost_decrease=0.0, grad_rtol=0.0),  # the radius below min_step
     ],
+    ids=["gn", "lm", "lm-largest-damping", "dogleg"],
 )
-def test_runs_to_the_end_as_the_python_loop(monkeypatch, settings):
-    optimizer = LevenbergMarquardt(**settings)
+def test_runs_to_the_end_as_the_python_loop(monkeypatch, optimizer):
     make = functools.partial(pose_graph, SE3, 10, closures=12, seed=3, spread=1.5, measurement_noise=0.3)
     problem, x0 = make()
     fast = compiled(optimizer, problem, x0)
-    assert fast.status is Status.STEP_SIZE
+    assert fast.status in (Status.STEP_SIZE, Status.GRADIENT_NORM)
     assert_same_until_roundoff(fast, python_loop(monkeypatch, optimizer, make()[0], x0))
 
 
-def test_no_iteration_returns_the_start(monkeypatch):
+@pytest.mark.parametrize("method", METHODS)
+def test_no_iteration_returns_the_start(monkeypatch, method):
     problem, x0 = pose_graph(SE3, 6, seed=5)
-    fast = compiled(LevenbergMarquardt(max_iterations=0), problem, x0)
+    fast = compiled(method(max_iterations=0), problem, x0)
     assert fast.status is Status.MAX_ITERATIONS and fast.nit == 0 and fast.x is x0 and not fast.history.extra
-    reference = python_loop(monkeypatch, LevenbergMarquardt(max_iterations=0), pose_graph(SE3, 6, seed=5)[0], x0)
+    reference = python_loop(monkeypatch, method(max_iterations=0), pose_graph(SE3, 6, seed=5)[0], x0)
     assert (reference.nfev, reference.fun) == (fast.nfev, pytest.approx(fast.fun, rel=1e-12))
 
 
-def test_the_gauge_free_graph_damped_as_the_python_loop(monkeypatch):
-    """No pose fixed: ``H`` is singular and only the damping makes the system definite; the
-    gauge itself is then round-off amplified by ``1/λ``, so the runs agree on the cost and on
-    the poses relative to each other."""
+@pytest.mark.parametrize("method", [LevenbergMarquardt, Dogleg])
+def test_the_gauge_free_graph_as_the_python_loop(monkeypatch, method):
+    """No pose fixed: ``H`` is singular and only LM's damping (the dogleg's shift of its
+    Gauss-Newton leg) makes the system definite; the gauge itself is then round-off amplified by
+    ``1/λ``, so the runs agree on the cost and on the poses relative to each other."""
     make = functools.partial(pose_graph, SE2, 12, seed=4, fixed=())
     problem, x0 = make()
-    fast = compiled(LevenbergMarquardt(), problem, x0)
-    reference = python_loop(monkeypatch, LevenbergMarquardt(), make()[0], x0)
+    fast = compiled(method(), problem, x0)
+    reference = python_loop(monkeypatch, method(), make()[0], x0)
     assert (fast.status, fast.nit) == (reference.status, reference.nit)
     np.testing.assert_allclose(fast.history.cost, reference.history.cost, rtol=1e-9)
     relative = [r.x[0].between(r.x).as_matrix() for r in (fast, reference)]
     np.testing.assert_allclose(*relative, atol=1e-6)
+
+
+def test_gauss_newton_on_a_singular_system_raises_as_the_python_loop():
+    """Gauss-Newton does not damp: the compiled loop hands the run over, and the Python loop raises."""
+    problem, x0 = pose_graph(SE2, 12, seed=4, fixed=())
+    with pytest.raises(SingularSystemError):
+        GaussNewton().solve(problem, x0)
 
 
 def test_history_times_are_the_iterations_ends():
@@ -158,21 +183,23 @@ def test_history_times_are_the_iterations_ends():
     assert times[0] >= 0 and np.all(np.diff(times) >= 0) and times[-1] <= result.time
 
 
-def test_tiny_grid_as_the_python_loop(monkeypatch, dataset):
+@pytest.mark.parametrize("method", METHODS)
+def test_tiny_grid_as_the_python_loop(monkeypatch, dataset, method):
     graph = g2o.read(dataset("tinyGrid3D"))
     x0 = graph.chordal_initialization()
-    fast = compiled(LevenbergMarquardt(), graph.problem("geodesic"), x0)
+    fast = compiled(method(), graph.problem("geodesic"), x0)
     assert fast.nit == 4 and fast.fun == pytest.approx(9.31391, abs=1e-5)
-    assert_same_run(fast, python_loop(monkeypatch, LevenbergMarquardt(), graph.problem("geodesic"), x0))
+    assert_same_run(fast, python_loop(monkeypatch, method(), graph.problem("geodesic"), x0))
 
 
-def test_threads_share_a_problem():
+@pytest.mark.parametrize("method", METHODS)
+def test_threads_share_a_problem(method):
     problem, x0 = pose_graph(SE3, 9, seed=7, spread=0.5)
-    expected = compiled(LevenbergMarquardt(), problem, x0)
+    expected = compiled(method(), problem, x0)
     results = [None] * 4
 
     def run(i):
-        results[i] = LevenbergMarquardt().solve(problem, x0)
+        results[i] = method().solve(problem, x0)
 
     threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
     for t in threads:
@@ -186,7 +213,8 @@ def test_threads_share_a_problem():
 
 @pytest.mark.parametrize(
     "case",
-    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too large", "no native kernels"],
+    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too large", "no native kernels",
+     "subclass"],
 )
 def test_the_python_loop_outside_the_scope(monkeypatch, capsys, case):
     """Each of these runs the Python loop, which builds the problem's structure."""
@@ -201,7 +229,8 @@ def test_the_python_loop_outside_the_scope(monkeypatch, capsys, case):
     if case == "no native kernels":
         for name, value in _kernels.path_settings("machine").items():
             monkeypatch.setattr(_kernels, name, value)
-    result = LevenbergMarquardt(**options).solve(problem, x0, callback=calls.append if case == "callback" else None)
+    method = type("Subclass", (LevenbergMarquardt,), {}) if case == "subclass" else LevenbergMarquardt
+    result = method(**options).solve(problem, x0, callback=calls.append if case == "callback" else None)
     assert problem.structure is not None and result.nit > 0
     assert case != "callback" or len(calls) == result.nit + 1
 
@@ -216,13 +245,14 @@ def test_a_non_finite_start_is_named_by_the_python_loop():
         LevenbergMarquardt().solve(bad, x0)
 
 
-def test_a_step_it_does_not_mirror_hands_the_run_to_the_python_loop(monkeypatch):
+@pytest.mark.parametrize("method", METHODS)
+def test_a_step_it_does_not_mirror_hands_the_run_to_the_python_loop(monkeypatch, method):
     """A step at or beyond the retraction's limit for its compiled kernel (here: any step) makes
     the compiled loop return unchanged, and the Python loop solves from the start."""
     problem, x0 = pose_graph(SE3, 9, seed=10)
-    expected = python_loop(monkeypatch, LevenbergMarquardt(), pose_graph(SE3, 9, seed=10)[0], x0)
-    monkeypatch.setattr(_small_lm, "HUGE", 0.0)
-    result = LevenbergMarquardt().solve(problem, x0)
+    expected = python_loop(monkeypatch, method(), pose_graph(SE3, 9, seed=10)[0], x0)
+    monkeypatch.setattr(_small_system, "HUGE", 0.0)
+    result = method().solve(problem, x0)
     assert problem.structure is not None
     np.testing.assert_array_equal(result.x.as_matrix(), expected.x.as_matrix())
     assert (result.status, result.nit, result.nfev) == (expected.status, expected.nit, expected.nfev)
