@@ -86,16 +86,6 @@ def _library() -> Any:
     return library
 
 
-@functools.cache
-def _methods() -> dict[type, int]:
-    """The optimizers the compiled loop mirrors — these classes exactly: a subclass may change a
-    step — and their codes in ``small_system.c``."""
-    from .dogleg import Dogleg
-    from .nonlinear_least_squares import GaussNewton, LevenbergMarquardt
-
-    return {GaussNewton: 0, LevenbergMarquardt: 1, Dogleg: 2}
-
-
 def _settings(optimizer: Any, method: int) -> tuple[int, float, float, float, float, float] | None:
     """The method's settings as the struct takes them (``max_backtracks, c1, λ₀, λ_max, κ, Δ₀``),
     or ``None`` where the compiled loop does not mirror them (Marquardt's damping)."""
@@ -127,7 +117,7 @@ def plan(optimizer: NonlinearLeastSquares, run: Run) -> _Problem | None:
     loss, ``Power(G, n)``, ``2 ≤ n``, at most :data:`~manopt_lie.linalg.DENSE_MAX` unknowns; no
     callback, no progress table, no time limit, at most :data:`MAX_RECORDS` iterations."""
     problem, stopping = run.problem, run.stopping
-    method = _methods().get(type(optimizer))
+    method = vars(type(optimizer)).get("_compiled_as")  # the class's own: a subclass may change a step
     if method is None or not isinstance(problem, LeastSquaresProblem) or len(problem.factors) != 1:
         return None
     if run.callback is not None or run.progress is not None or stopping.max_time != math.inf:

@@ -117,6 +117,8 @@ class Dogleg(NonlinearLeastSquares):
         See :class:`~manopt_lie.optim.NonlinearLeastSquares`.
     """
 
+    _compiled_as = 2
+
     def __init__(
         self,
         *,

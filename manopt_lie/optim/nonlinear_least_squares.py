@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -101,6 +101,10 @@ class NonlinearLeastSquares(Optimizer):
     stopping, **fields
         A :class:`~manopt_lie.optim.StoppingCriteria`, or its fields as keywords.
     """
+
+    _compiled_as: ClassVar[int | None] = None
+    """The code of the class's iterations in ``small_system.c`` (:mod:`._small_system`), set by the
+    classes it mirrors, each for itself only (a subclass may change a step)."""
 
     def __init__(
         self,
@@ -223,6 +227,8 @@ class GaussNewton(NonlinearLeastSquares):
         See :class:`NonlinearLeastSquares`.
     """
 
+    _compiled_as = 0
+
     def __init__(
         self,
         *,
@@ -306,6 +312,8 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     linear_solver, stopping, **fields
         See :class:`NonlinearLeastSquares`.
     """
+
+    _compiled_as = 1
 
     def __init__(
         self,
