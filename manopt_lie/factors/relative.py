@@ -85,7 +85,7 @@ def between_factor(
         def residual(xi: Any, xj: Any, jac: bool = False) -> Any:
             return fused(as_group(xi, group, name), as_group(xj, group, name), jac)
 
-        residual.native_between = fused.native_between  # type: ignore[attr-defined]  # compiled LM
+        residual.native_between = fused.native_between  # type: ignore[attr-defined]  # for optim._small_system
         return Factor(v, residual, loss=loss, name=name, blocks=blocks, fresh_jacobians=True)
 
     def kernel(xi: Any, xj: Any, jac: bool = False) -> Any:

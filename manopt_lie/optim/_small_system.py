@@ -46,9 +46,11 @@ if TYPE_CHECKING:
 MAX_RECORDS = 100_000
 """The most iterations (``max_iterations``) the compiled loop keeps a history for."""
 
+GAUSS_NEWTON, LEVENBERG_MARQUARDT, DOGLEG = 0, 1, 2
+"""The methods' codes in ``small_system.c`` (an optimizer class's ``_compiled_as``)."""
+
 EXTRAS = (("alpha",), ("damping", "rho"), ("radius", "gauss_newton_shift", "dogleg", "rho"))
-"""``history.extra`` of each method (``small_system.c``'s ``GAUSS_NEWTON``, ``LEVENBERG_MARQUARDT``,
-``DOGLEG``), as the Python loops record them."""
+"""``history.extra`` of each method, by code, as the Python loops record them."""
 
 _c_double, _c_long, _c_void = ctypes.c_double, ctypes.c_longlong, ctypes.c_void_p
 
@@ -89,9 +91,9 @@ def _library() -> Any:
 def _settings(optimizer: Any, method: int) -> tuple[int, float, float, float, float, float] | None:
     """The method's settings as the struct takes them (``max_backtracks, c1, λ₀, λ_max, κ, Δ₀``),
     or ``None`` where the compiled loop does not mirror them (Marquardt's damping)."""
-    if method == 0:
+    if method == GAUSS_NEWTON:
         return optimizer.max_backtracks, optimizer.sufficient_decrease, 0.0, 0.0, 0.0, 0.0
-    if method == 1:
+    if method == LEVENBERG_MARQUARDT:
         if optimizer.damping != "identity":
             return None
         return 0, 0.0, optimizer.initial_damping, optimizer.max_damping, optimizer.damping_factor, 0.0

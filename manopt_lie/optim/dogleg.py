@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..linalg import LinearSolver, SingularSystemError
+from . import _small_system
 from .least_squares_problem import LeastSquaresProblem, Linearization
 from .nonlinear_least_squares import NonlinearLeastSquares, _no_descent, _Step, model_decrease
 from .optimizer import Run, StoppingCriteria
@@ -117,7 +118,7 @@ class Dogleg(NonlinearLeastSquares):
         See :class:`~manopt_lie.optim.NonlinearLeastSquares`.
     """
 
-    _compiled_as = 2
+    _compiled_as = _small_system.DOGLEG
 
     def __init__(
         self,

@@ -227,7 +227,7 @@ class GaussNewton(NonlinearLeastSquares):
         See :class:`NonlinearLeastSquares`.
     """
 
-    _compiled_as = 0
+    _compiled_as = _small_system.GAUSS_NEWTON
 
     def __init__(
         self,
@@ -300,7 +300,6 @@ class LevenbergMarquardt(NonlinearLeastSquares):
     initializations take as many iterations as GTSAM's LM). ``history.extra``
     holds ``damping`` (the ``λ`` of the step) and ``rho``.
 
-
     Parameters
     ----------
     initial_damping, max_damping : float
@@ -313,7 +312,7 @@ class LevenbergMarquardt(NonlinearLeastSquares):
         See :class:`NonlinearLeastSquares`.
     """
 
-    _compiled_as = 1
+    _compiled_as = _small_system.LEVENBERG_MARQUARDT
 
     def __init__(
         self,
