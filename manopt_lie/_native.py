@@ -15,6 +15,7 @@ No compiler, a failed build or ``MANOPT_LIE_NATIVE=0``: :func:`compile_functions
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
@@ -103,7 +104,7 @@ class Native:
         self._strides_in = ctypes.c_longlong * len(sizes_in)
         self._strides_out = (ctypes.c_longlong * len(sizes_out))(*sizes_out)
 
-    @property
+    @functools.cached_property
     def address(self) -> int:
         """The batch driver's address, for compiled code that calls it (``int name_batch(long long m,
         const double** arg, const long long* arg_stride, double** res, const long long* res_stride)``)."""

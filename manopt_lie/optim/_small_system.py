@@ -7,8 +7,9 @@ bookkeeping, a dozen NumPy calls of a few microseconds each — and GTSAM's whol
 SE(2) or SE(3) with native kernels, of at most :data:`~manopt_lie.linalg.DENSE_MAX` unknowns,
 is therefore solved by ``small_system.c``: the iterations of :class:`GaussNewton`,
 :class:`LevenbergMarquardt` or :class:`Dogleg` — the same steps, acceptance and updates, the
-same stopping rule and collapse test — on a dense ``H`` with its own Cholesky factorization,
-calling the factor's compiled kernels and the compiled retraction through their addresses. Its
+same stopping rule and collapse test — on a dense ``H`` factored by LAPACK's Cholesky (SciPy's, as
+the Python loop's), calling the factor's compiled kernels and the compiled retraction through
+their addresses. Its
 history is recorded into the run afterwards, with the times at which the iterations ended.
 
 The iterates are those of the Python loop up to round-off (sums in another order); one check is
@@ -53,6 +54,7 @@ EXTRAS = (("alpha",), ("damping", "rho"), ("radius", "gauss_newton_shift", "dogl
 """``history.extra`` of each method, by code, as the Python loops record them."""
 
 _c_double, _c_long, _c_void = ctypes.c_double, ctypes.c_longlong, ctypes.c_void_p
+_DEFAULT_RTOL = CholeskySolver().rtol  # what the automatic choice checks a dense solve to
 
 
 def _fields(kind: Any, names: str) -> list[tuple[str, Any]]:
@@ -66,7 +68,7 @@ class _Problem(ctypes.Structure):
         *_fields(_c_long, "n m s2 k"),
         *_fields(_c_void, "edges fixed z sqrt_info"),
         *_fields(_c_long, "sqrt_info_stride"),
-        *_fields(_c_void, "between log rplus"),
+        *_fields(_c_void, "between log rplus potrf potrs"),
         *_fields(_c_double, "rtol grad_rtol grad_atol min_step rel_decrease typical_dist roundoff huge"),
         *_fields(_c_long, "max_iterations method max_backtracks"),
         *_fields(_c_double, "c1 lam0 lam_max kappa radius0"),
@@ -74,6 +76,19 @@ class _Problem(ctypes.Structure):
         *_fields(_c_long, "records nfev ngev rejected moved"),
         *_fields(ctypes.c_int, "status"),
     ]
+
+
+@functools.cache
+def _lapack() -> list[int]:
+    """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` as SciPy ships them (the capsules of
+    :mod:`scipy.linalg.cython_lapack`): the routines the Python loop's dense solves call."""
+    from scipy.linalg import cython_lapack
+
+    name, pointer = ctypes.pythonapi.PyCapsule_GetName, ctypes.pythonapi.PyCapsule_GetPointer
+    name.restype, name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dpotrf", "dpotrs")]  # type: ignore[attr-defined]
+    return [int(pointer(capsule, name(capsule))) for capsule in capsules]
 
 
 @functools.cache
@@ -106,7 +121,7 @@ def _rtol(optimizer: NonlinearLeastSquares) -> float | None:
     the one a small system gets: the automatic choice, or a Cholesky solver that may go dense."""
     solver = optimizer.linear_solver
     if type(solver) is AutoSolver:
-        return CholeskySolver().rtol
+        return _DEFAULT_RTOL
     if type(solver) is CholeskySolver and solver.backend in ("auto", "dense"):
         return solver.rtol
     return None
@@ -150,7 +165,7 @@ def plan(optimizer: NonlinearLeastSquares, run: Run) -> _Problem | None:
         n, len(edges), spec.z_inv.shape[1], group.dim,
         edges.ctypes.data, fixed.ctypes.data, spec.z_inv.address, sqrt_info.address if whitened else None,
         (0 if len(sqrt_info.shape) == 1 else sqrt_info.shape[1]) if whitened else 0,
-        *[k.address for k in kernels],
+        *[k.address for k in kernels], *_lapack(),
         rtol, stopping.grad_rtol, stopping.grad_atol, stopping.min_step, stopping.rel_cost_decrease or 0.0,
         manifold.typical_dist, ROUNDOFF, HUGE,
         stopping.max_iterations, method, max_backtracks, c1, lam0, lam_max, kappa, radius0,

@@ -10,8 +10,8 @@
  * own, and its comments name the Python it mirrors.
  *
  * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are dense (n <= 128 unknowns), the columns of fixed
- * poses zero in A_e and 1 on their diagonal, as LeastSquaresProblem builds them. Solves are
- * checked as CholeskySolver checks a solution (its random probe aside).
+ * poses zero in A_e and 1 on their diagonal, as LeastSquaresProblem builds them. Solves are LAPACK's
+ * and checked as CholeskySolver checks a solution (its random probe aside).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -20,6 +20,10 @@
 
 typedef int (*batch_fn)(long long m, const double** arg, const long long* arg_stride, double** res,
                         const long long* res_stride);
+/* LAPACK's Cholesky factorization and solve, as SciPy ships them (scipy.linalg.cython_lapack): the
+ * routines the Python loop's dense solves call. */
+typedef void (*potrf_fn)(char* uplo, int* n, double* a, int* lda, int* info);
+typedef void (*potrs_fn)(char* uplo, int* n, int* nrhs, double* a, int* lda, double* b, int* ldb, int* info);
 
 enum { GRADIENT_NORM = 1, COST_DECREASE = 2, STEP_SIZE = 3, MAX_ITERATIONS = 4, LINE_SEARCH_FAILED = 6,
        LINEAR_SOLVER_FAILED = 7, NO_PROGRESS = 9, NON_FINITE = 10, FALLBACK = -1, NO_MEMORY = -2 };
@@ -35,6 +39,8 @@ typedef struct {
   const double* sqrt_info;         /* (k*k) shared, (m, k*k) per edge, or NULL (unit noise) */
   long long sqrt_info_stride;      /* 0 (shared) or k*k */
   batch_fn between, log, rplus;    /* (xi, xj, z[, L]) -> (r, [J_i | J_j]); -> r; (x, tau) -> x Exp(tau) */
+  potrf_fn potrf;
+  potrs_fn potrs;
   /* the run's settings */
   double rtol, grad_rtol, grad_atol, min_step, rel_decrease, typical_dist, roundoff, huge;
   long long max_iterations;
@@ -123,69 +129,65 @@ static int evaluate(const nls_problem* p, const double* x, double* xi, double* x
   return 0;
 }
 
-/* H = sum_e A_e^T A_e (+1 on the fixed poses' diagonal) and g = sum_e A_e^T r_e, A_e = [J_i | J_j];
- * whether they and the cost are finite (Linearization.is_finite). H is exactly symmetric. */
+/* H = sum_e A_e^T A_e (+1 on the fixed poses' diagonal) and g = sum_e A_e^T r_e, A_e = [J_i | J_j]:
+ * each edge's products summed row by row of A_e into a block (exactly symmetric), then added into
+ * H; whether the cost, g and the Jacobians are finite (Linearization.is_finite). */
 static int assemble(const nls_problem* p, const evaluation* ev, double* H, double* g) {
   const long long k = p->k, w = 2 * k, N = p->n * k;
   memset(H, 0, N * N * sizeof(double));
   memset(g, 0, N * sizeof(double));
   long long col[12];
+  double block[144], ga[12];
+  int finite = isfinite(ev->cost);
   for (long long e = 0; e < p->m; ++e) {
     const double* A = ev->J + e * k * w;
     const double* r = ev->r + e * k;
     for (long long a = 0; a < w; ++a) col[a] = p->edges[2 * e + a / k] * k + a % k;
-    for (long long a = 0; a < w; ++a) {
-      double ga = 0.0;
-      for (long long row = 0; row < k; ++row) ga += A[row * w + a] * r[row];
-      g[col[a]] += ga;
-      for (long long b = 0; b < w; ++b) {
-        double h = 0.0;
-        for (long long row = 0; row < k; ++row) h += A[row * w + a] * A[row * w + b];
-        H[col[a] * N + col[b]] += h;
+    memset(block, 0, w * w * sizeof(double));
+    memset(ga, 0, w * sizeof(double));
+    for (long long row = 0; row < k; ++row) {
+      const double* Ar = A + row * w;
+      for (long long a = 0; a < w; ++a) {
+        finite &= isfinite(Ar[a]);
+        ga[a] += Ar[a] * r[row];
+        for (long long b = 0; b < w; ++b) block[a * w + b] += Ar[a] * Ar[b];
       }
+    }
+    for (long long a = 0; a < w; ++a) {
+      g[col[a]] += ga[a];
+      double* Hrow = H + col[a] * N;
+      for (long long b = 0; b < w; ++b) Hrow[col[b]] += block[a * w + b];
     }
   }
   for (long long v = 0; v < p->n; ++v)
     if (p->fixed[v])
       for (long long c = v * k; c < (v + 1) * k; ++c) H[c * N + c] += 1.0;
-  int finite = isfinite(ev->cost);
   for (long long i = 0; i < N && finite; ++i) finite = isfinite(g[i]);
-  for (long long i = 0; i < N * N && finite; ++i) finite = isfinite(H[i]);
   return finite;
 }
 
-/* delta = -(H + shift I)^{-1} g by Cholesky, checked as CholeskySolver checks a solve: finite,
- * |(H + shift I) delta + g| <= rtol |g|, -g^T delta > 0 (unless g = 0). 0 on success, 1 if the
- * system counts as singular. H is symmetric, so its rows are its columns: L is built row by row
- * (L[i*N + j] = L_ij, j <= i) and every inner product runs along contiguous rows. */
-static int damped_solve(const double* H, const double* g, double shift, double rtol, long long N, double* L,
-                        double* delta, double* y) {
-  for (long long i = 0; i < N; ++i) {
-    double* row = L + i * N;
-    for (long long j = 0; j <= i; ++j) {
-      double s = H[i * N + j] + (i == j ? shift : 0.0) - dot(row, L + j * N, j);
-      if (i == j) {
-        if (!(s > 0.0) || !isfinite(s)) return 1;
-        row[i] = sqrt(s);
-      } else {
-        row[j] = s / L[j * N + j];
-      }
-    }
-  }
-  for (long long i = 0; i < N; ++i) y[i] = (-g[i] - dot(L + i * N, y, i)) / L[i * N + i]; /* L y = -g */
-  for (long long i = N - 1; i >= 0; --i) { /* L^T delta = y, column by column of L^T (rows of L) */
-    delta[i] = y[i] / L[i * N + i];
-    for (long long q = 0; q < i; ++q) y[q] -= L[i * N + q] * delta[i];
-  }
+/* delta = -(H + shift I)^{-1} g by LAPACK's Cholesky (the factor in L), checked as
+ * CholeskySolver checks a solve: finite, |(H + shift I) delta + g| <= rtol |g|, -g^T delta > 0
+ * (unless g = 0). 0 on success, 1 if the system counts as singular. H is symmetric: its rows are
+ * its columns, whichever order LAPACK reads. */
+static int damped_solve(const nls_problem* p, const double* H, const double* g, double shift, long long N, double* L,
+                        double* delta) {
+  char lower = 'L';
+  int n = (int)N, one = 1, info = 0;
+  memcpy(L, H, N * N * sizeof(double));
+  for (long long i = 0; i < N; ++i) L[i * N + i] += shift, delta[i] = -g[i];
+  p->potrf(&lower, &n, L, &n, &info);
+  if (info) return 1;
+  p->potrs(&lower, &n, &one, L, &n, delta, &n, &info);
   double residual = 0.0, b2 = 0.0, curvature = 0.0;
   for (long long i = 0; i < N; ++i) {
-    if (!isfinite(delta[i])) return 1;
+    if (info || !isfinite(delta[i])) return 1;
     double s = dot(H + i * N, delta, N) + shift * delta[i] + g[i];
     residual += s * s;
     b2 += g[i] * g[i];
     curvature -= g[i] * delta[i];
   }
-  if (sqrt(residual) > rtol * sqrt(b2)) return 1;
+  if (sqrt(residual) > p->rtol * sqrt(b2)) return 1;
   return b2 > 0.0 && !(curvature > 0.0);
 }
 
@@ -254,7 +256,7 @@ static int gauss_newton_step(state* s, step_result* r) {
   nls_problem* p = s->p;
   *r = rejected(s);
   r->extra[0] = 0.0; /* alpha */
-  if (damped_solve(s->H, s->g, 0.0, p->rtol, s->N, s->L, s->delta, s->tmp)) return FALLBACK; /* GN raises */
+  if (damped_solve(p, s->H, s->g, 0.0, s->N, s->L, s->delta)) return FALLBACK; /* GN raises */
   const double slope = dot(s->g, s->delta, s->N), d_norm = norm(s->delta, s->N);
   if (!(slope < 0)) {
     r->status = no_descent(s->g, s->N);
@@ -285,7 +287,7 @@ static int lm_step(state* s, step_result* r) {
   nls_problem* p = s->p;
   *r = rejected(s);
   r->extra[0] = s->lam; /* damping; extra[1]: rho */
-  if (damped_solve(s->H, s->g, s->lam * s->scale, p->rtol, s->N, s->L, s->delta, s->tmp)) {
+  if (damped_solve(p, s->H, s->g, s->lam * s->scale, s->N, s->L, s->delta)) {
     lm_fail(s, r);
     return 0;
   }
@@ -319,7 +321,7 @@ static void dogleg_legs(state* s) {
   if (s->legs) return;
   s->has_gauss_newton = 0, s->shift = NAN;
   for (size_t i = 0; i < sizeof SHIFTS / sizeof SHIFTS[0] && !s->has_gauss_newton; ++i)
-    if (!damped_solve(s->H, s->g, SHIFTS[i] * s->scale, p->rtol, N, s->L, s->gauss_newton, s->tmp))
+    if (!damped_solve(p, s->H, s->g, SHIFTS[i] * s->scale, N, s->L, s->gauss_newton))
       s->has_gauss_newton = 1, s->shift = SHIFTS[i];
   double curvature = 0.0;
   for (long long i = 0; i < N; ++i) curvature += s->g[i] * dot(s->H + i * N, s->g, N);
@@ -424,7 +426,7 @@ static int stop_reason(const nls_problem* p, double grad_tol, double scale, doub
  * solved): Gauss-Newton's, LM's with lambda_0 (_predicted_decrease). */
 static double predicted_decrease(state* s) {
   const double shift = s->p->method == LEVENBERG_MARQUARDT ? s->p->lam0 * s->scale : 0.0;
-  if (damped_solve(s->H, s->g, shift, s->p->rtol, s->N, s->L, s->delta, s->tmp)) return NAN;
+  if (damped_solve(s->p, s->H, s->g, shift, s->N, s->L, s->delta)) return NAN;
   return model_decrease(s->H, s->g, s->delta, s->N);
 }
 
