@@ -7,6 +7,8 @@ compiler (``$CC``, else ``cc``) builds one shared library per set of functions, 
 directory under the hash of its source (``$MANOPT_LIE_CACHE``, else ``$XDG_CACHE_HOME`` or
 ``~/.cache``, then ``manopt_lie/native``), so it is compiled once per machine (~0.3 s) and loaded
 in a millisecond afterwards. A driver is called through :mod:`ctypes`, which releases the GIL.
+:func:`load` builds any C source the same way (``optim/small_system.c``, which calls the drivers
+through their addresses, :attr:`Native.address`).
 
 No compiler, a failed build or ``MANOPT_LIE_NATIVE=0``: :func:`compile_functions` returns
 ``None`` and the callers keep their other paths.
