@@ -9,7 +9,7 @@
  * out the problem struct and turns the history into a result; this file holds no policy of its
  * own, and its comments name the Python it mirrors.
  *
- * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are dense (n <= 128 unknowns), the columns of fixed
+ * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are dense (at most MAX_UNKNOWNS = 384 unknowns), the columns of fixed
  * poses zero in A_e and 1 on their diagonal, as LeastSquaresProblem builds them. Solves are LAPACK's
  * and checked as CholeskySolver checks a solution (its random probe aside).
  */

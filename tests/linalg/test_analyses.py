@@ -158,12 +158,12 @@ def test_problems_in_threads_share_one_structure():
     as the one alone."""
     graph = _grid(2, 8)
     x0 = graph.chordal_initialization()
-    alone = LevenbergMarquardt().solve(graph.problem("geodesic"), x0)
+    alone = PYTHON_LOOP.solve(graph.problem("geodesic"), x0)
     problems = [graph.problem("geodesic") for _ in range(4)]
     results: list = [None] * 4
 
     def run(i: int) -> None:
-        results[i] = LevenbergMarquardt().solve(problems[i], x0)
+        results[i] = PYTHON_LOOP.solve(problems[i], x0)
 
     threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
     for t in threads:

@@ -78,7 +78,8 @@ METHODS = [GaussNewton, LevenbergMarquardt, Dogleg]
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize(
     ("group", "n", "noise"),
-    [(SE3, 9, "unit"), (SE3, 12, "isotropic"), (SE3, 8, "per-edge"), (SE2, 30, "unit"), (SE2, 20, "per-edge")],
+    [(SE3, 9, "unit"), (SE3, 12, "isotropic"), (SE3, 8, "per-edge"), (SE2, 30, "unit"), (SE2, 20, "per-edge"),
+     (SE2, 128, "isotropic")],  # 384 unknowns: the largest the compiled loop takes
 )
 def test_converges_as_the_python_loop(monkeypatch, method, group, n, noise):
     optimizer = method()
@@ -218,7 +219,7 @@ def test_threads_share_a_problem(method):
 )
 def test_the_python_loop_outside_the_scope(monkeypatch, capsys, case):
     """Each of these runs the Python loop, which builds the problem's structure."""
-    problem, x0 = pose_graph(SE3, 23 if case == "too large" else 9, seed=8)  # 23 · 6 = 138 > DENSE_MAX unknowns
+    problem, x0 = pose_graph(SE3, 65 if case == "too large" else 9, seed=8)  # 65 · 6 = 390 > MAX_UNKNOWNS
     options = {"callback": {}, "verbosity": {"verbosity": 1}, "diagonal damping": {"damping": "diagonal"},
                "pcg": {"linear_solver": "pcg"}, "time limit": {"max_time": 10.0}}.get(case, {})  # fmt: skip
     calls = []
