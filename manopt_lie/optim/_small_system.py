@@ -4,8 +4,9 @@ compiled code (``small_system.c``).
 On a system of a few dozen unknowns a Python iteration is almost all calls — validation,
 bookkeeping, a dozen NumPy calls of a few microseconds each — and GTSAM's whole solve of a
 9-pose graph takes 0.4 ms. A pose graph whose one factor is the library's between factor on
-SE(2) or SE(3) with native kernels, of at most :data:`MAX_UNKNOWNS` unknowns, is therefore
-solved by ``small_system.c``: the iterations of :class:`GaussNewton`,
+SE(2) or SE(3) with native kernels, of at most :data:`DENSE_UNKNOWNS` unknowns (or
+:data:`MAX_UNKNOWNS` where its ``H`` is banded), is therefore solved by ``small_system.c``: the
+iterations of :class:`GaussNewton`,
 :class:`LevenbergMarquardt` or :class:`Dogleg` — the same steps, acceptance and updates, the
 same stopping rule and collapse test — on a dense ``H`` factored by LAPACK's Cholesky (SciPy's, as
 the Python loop's), calling the factor's compiled kernels and the compiled retraction through
@@ -30,6 +31,9 @@ from importlib import resources
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import scipy.sparse
+from numpy.typing import NDArray
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .. import _kernels, _native
 from ..lie import SE2, SE3
@@ -44,12 +48,23 @@ from .result import OptimizeResult, Status
 if TYPE_CHECKING:
     from .nonlinear_least_squares import NonlinearLeastSquares
 
-MAX_UNKNOWNS = 384
-"""The largest system the compiled loop takes (64 SE(3) or 128 SE(2) poses): its ``H`` is dense, and
-LAPACK's dense Cholesky (0.13 ms at 162 unknowns, 0.74 ms at 384 here) stays faster than the
-sparse Python loop's set-up and iterations up to about this size (LM against GTSAM's, cold:
-``cube(3)``, 162 unknowns, 1.18 compiled against 3.41 sparse; ``grid2d(10, 10)``, 300: 1.21 against
-1.63; ``cube(4)``, 384: 2.09 against 2.10; ``grid2d(12, 12)``, 432: 1.61 against 1.22)."""
+DENSE_UNKNOWNS = 384
+"""The largest system the compiled loop factors dense (64 SE(3) or 128 SE(2) poses): LAPACK's dense
+Cholesky (0.13 ms at 162 unknowns, 0.74 ms at 384 here) stays faster than the sparse Python loop's
+set-up and iterations up to about this size (LM against GTSAM's, cold, with a dense ``H``:
+``cube(3)``, 162 unknowns, 1.18 compiled against 3.41 sparse; ``grid2d(10, 10)``, 300: 1.21
+against 1.63; ``cube(4)``, 384: 2.09 against 2.10; ``grid2d(12, 12)``, 432: 1.61 against 1.22)."""
+
+MAX_UNKNOWNS = 768
+"""The largest system the compiled loop takes at all, where its ``H`` is banded (:func:`_banded_order`):
+``H`` is stored dense, so beyond this its memory costs more than the band saves (banded, against
+the sparse Python loop, LM over GTSAM's: ``grid2d(16, 16)``, 768 unknowns, 0.33 against 0.76;
+``smallGrid3D``, 750, 0.75 against 0.83; ``cube(5)``, 750, 1.19 against 1.51; but
+``grid2d(22, 22)``, 1452, 0.92 against 0.55 and ``cube(6)``, 1296, 2.79 against 1.15)."""
+
+BANDED_FROM = 128
+"""Systems above this many unknowns are ordered for a band (:func:`_banded_order`); below, the
+ordering costs more than a dense factorization."""
 
 MAX_RECORDS = 100_000
 """The most iterations (``max_iterations``) the compiled loop keeps a history for."""
@@ -75,7 +90,8 @@ class _Problem(ctypes.Structure):
         *_fields(_c_long, "n m s2 k"),
         *_fields(_c_void, "edges fixed z sqrt_info"),
         *_fields(_c_long, "sqrt_info_stride"),
-        *_fields(_c_void, "between log rplus potrf potrs"),
+        *_fields(_c_void, "between log rplus potrf potrs pbtrf pbtrs position"),
+        *_fields(_c_long, "kd"),
         *_fields(_c_double, "rtol grad_rtol grad_atol min_step rel_decrease typical_dist roundoff huge"),
         *_fields(_c_long, "max_iterations method max_backtracks"),
         *_fields(_c_double, "c1 lam0 lam_max kappa radius0"),
@@ -87,14 +103,15 @@ class _Problem(ctypes.Structure):
 
 @functools.cache
 def _lapack() -> list[int]:
-    """The addresses of LAPACK's ``dpotrf`` and ``dpotrs`` as SciPy ships them (the capsules of
-    :mod:`scipy.linalg.cython_lapack`): the routines the Python loop's dense solves call."""
+    """The addresses of LAPACK's ``dpotrf``, ``dpotrs``, ``dpbtrf`` and ``dpbtrs`` as SciPy ships
+    them (the capsules of :mod:`scipy.linalg.cython_lapack`): the dense Cholesky routines the Python
+    loop's dense solves call, and their banded twins."""
     from scipy.linalg import cython_lapack
 
     name, pointer = ctypes.pythonapi.PyCapsule_GetName, ctypes.pythonapi.PyCapsule_GetPointer
     name.restype, name.argtypes = ctypes.c_char_p, [ctypes.py_object]
     pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
-    capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dpotrf", "dpotrs")]  # type: ignore[attr-defined]
+    capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dpotrf", "dpotrs", "dpbtrf", "dpbtrs")]  # type: ignore[attr-defined]
     return [int(pointer(capsule, name(capsule))) for capsule in capsules]
 
 
@@ -123,6 +140,22 @@ def _settings(optimizer: Any, method: int) -> tuple[int, float, float, float, fl
     return 0, 0.0, 0.0, 0.0, 0.0, math.nan if radius is None else radius
 
 
+def _banded_order(edges: NDArray[np.int64], n: int, k: int) -> tuple[NDArray[np.int64], int]:
+    """Each pose's position in an order that keeps ``H`` banded — reverse Cuthill-McKee on the
+    poses' graph — and ``H``'s half bandwidth in it, in unknowns; the poses' own order and a dense
+    ``H`` (``N − 1``) where a band would not save at least half of the factorization's work."""
+    N = n * k
+    position = np.arange(n, dtype=np.int64)
+    if N > BANDED_FROM:
+        graph = scipy.sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+        position[reverse_cuthill_mckee(graph, symmetric_mode=False)] = np.arange(n)
+        kd = (int(np.abs(position[edges[:, 0]] - position[edges[:, 1]]).max()) + 1) * k - 1
+        if 2 * kd * kd < N * N / 3:  # the band's N·kd² against the dense N³/3, halved at least
+            return position, kd
+        position = np.arange(n, dtype=np.int64)
+    return position, N - 1
+
+
 def _rtol(optimizer: NonlinearLeastSquares) -> float | None:
     """The relative residual the dense solves are checked to, if the optimizer's linear solver is
     the one a small system gets: the automatic choice, or a Cholesky solver that may go dense."""
@@ -138,7 +171,8 @@ def plan(optimizer: NonlinearLeastSquares, run: Run) -> _Problem | None:
     """The compiled loop's problem for this run, or ``None`` if the run is outside its scope:
     :class:`GaussNewton`, :class:`LevenbergMarquardt` (damping ``s·I``) or :class:`Dogleg` with
     the default linear solver; one between factor of SE(2)/SE(3) with native kernels, no robust
-    loss, ``Power(G, n)``, ``2 ≤ n``, at most :data:`MAX_UNKNOWNS` unknowns; no
+    loss, ``Power(G, n)``, ``2 ≤ n``, at most :data:`DENSE_UNKNOWNS` unknowns (:data:`MAX_UNKNOWNS`
+    where ``H`` is banded); no
     callback, no progress table, no time limit, at most :data:`MAX_RECORDS` iterations."""
     problem, stopping = run.problem, run.stopping
     method = vars(type(optimizer)).get("_compiled_as")  # the class's own: a subclass may change a step
@@ -168,16 +202,19 @@ def plan(optimizer: NonlinearLeastSquares, run: Run) -> _Problem | None:
     fixed = np.ascontiguousarray(problem.fixed, dtype=np.uint8)
     sqrt_info = spec.sqrt_information
     max_backtracks, c1, lam0, lam_max, kappa, radius0 = settings
+    position, kd = _banded_order(edges, n, group.dim)
+    if kd == n * group.dim - 1 and n * group.dim > DENSE_UNKNOWNS:  # no narrow band: the sparse Python loop
+        return None
     c = _Problem(
         n, len(edges), spec.z_inv.shape[1], group.dim,
         edges.ctypes.data, fixed.ctypes.data, spec.z_inv.address, sqrt_info.address if whitened else None,
         (0 if len(sqrt_info.shape) == 1 else sqrt_info.shape[1]) if whitened else 0,
-        *[k.address for k in kernels], *_lapack(),
+        *[k.address for k in kernels], *_lapack(), position.ctypes.data, kd,
         rtol, stopping.grad_rtol, stopping.grad_atol, stopping.min_step, stopping.rel_cost_decrease or 0.0,
         manifold.typical_dist, ROUNDOFF, HUGE,
         stopping.max_iterations, method, max_backtracks, c1, lam0, lam_max, kappa, radius0,
     )  # fmt: skip
-    c._keep = (edges, fixed)  # the arrays the pointers point into, alive as long as the struct
+    c._keep = (edges, fixed, position)  # the arrays the pointers point into, alive as long as the struct
     return c
 
 

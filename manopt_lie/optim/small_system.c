@@ -9,9 +9,11 @@
  * out the problem struct and turns the history into a result; this file holds no policy of its
  * own, and its comments name the Python it mirrors.
  *
- * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are dense (at most MAX_UNKNOWNS = 384 unknowns), the columns of fixed
- * poses zero in A_e and 1 on their diagonal, as LeastSquaresProblem builds them. Solves are LAPACK's
- * and checked as CholeskySolver checks a solution (its random probe aside).
+ * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are stored dense (at most 768 unknowns: the caller's
+ * DENSE_UNKNOWNS and MAX_UNKNOWNS), in an order of the poses that keeps H banded (reverse Cuthill-McKee, from the
+ * caller); the columns of fixed poses are zero in A_e and 1 on their diagonal, as
+ * LeastSquaresProblem builds them. Solves are LAPACK's, dense or banded, and checked as
+ * CholeskySolver checks a solution (its random probe aside).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -24,6 +26,8 @@ typedef int (*batch_fn)(long long m, const double** arg, const long long* arg_st
  * routines the Python loop's dense solves call. */
 typedef void (*potrf_fn)(char* uplo, int* n, double* a, int* lda, int* info);
 typedef void (*potrs_fn)(char* uplo, int* n, int* nrhs, double* a, int* lda, double* b, int* ldb, int* info);
+typedef void (*pbtrf_fn)(char* uplo, int* n, int* kd, double* ab, int* ldab, int* info);
+typedef void (*pbtrs_fn)(char* uplo, int* n, int* kd, int* nrhs, double* ab, int* ldab, double* b, int* ldb, int* info);
 
 enum { GRADIENT_NORM = 1, COST_DECREASE = 2, STEP_SIZE = 3, MAX_ITERATIONS = 4, LINE_SEARCH_FAILED = 6,
        LINEAR_SOLVER_FAILED = 7, NO_PROGRESS = 9, NON_FINITE = 10, FALLBACK = -1, NO_MEMORY = -2 };
@@ -41,6 +45,12 @@ typedef struct {
   batch_fn between, log, rplus;    /* (xi, xj, z[, L]) -> (r, [J_i | J_j]); -> r; (x, tau) -> x Exp(tau) */
   potrf_fn potrf;
   potrs_fn potrs;
+  pbtrf_fn pbtrf;
+  pbtrs_fn pbtrs;
+  /* the order of the unknowns: pose v's coordinates at position[v]*k..; H's half bandwidth in it
+   * (N - 1: dense, factored by potrf; less: banded, by pbtrf) */
+  const long long* position;
+  long long kd;
   /* the run's settings */
   double rtol, grad_rtol, grad_atol, min_step, rel_decrease, typical_dist, roundoff, huge;
   long long max_iterations;
@@ -134,7 +144,10 @@ static int evaluate(const nls_problem* p, const double* x, double* xi, double* x
  * H; whether the cost, g and the Jacobians are finite (Linearization.is_finite). */
 static int assemble(const nls_problem* p, const evaluation* ev, double* H, double* g) {
   const long long k = p->k, w = 2 * k, N = p->n * k;
-  memset(H, 0, N * N * sizeof(double));
+  for (long long i = 0; i < N; ++i) { /* the band only: nothing is added outside it */
+    const long long lo = i > p->kd ? i - p->kd : 0, hi = i + p->kd + 1 < N ? i + p->kd + 1 : N;
+    memset(H + i * N + lo, 0, (hi - lo) * sizeof(double));
+  }
   memset(g, 0, N * sizeof(double));
   long long col[12];
   double block[144], ga[12];
@@ -142,7 +155,7 @@ static int assemble(const nls_problem* p, const evaluation* ev, double* H, doubl
   for (long long e = 0; e < p->m; ++e) {
     const double* A = ev->J + e * k * w;
     const double* r = ev->r + e * k;
-    for (long long a = 0; a < w; ++a) col[a] = p->edges[2 * e + a / k] * k + a % k;
+    for (long long a = 0; a < w; ++a) col[a] = p->position[p->edges[2 * e + a / k]] * k + a % k;
     memset(block, 0, w * w * sizeof(double));
     memset(ga, 0, w * sizeof(double));
     for (long long row = 0; row < k; ++row) {
@@ -161,28 +174,42 @@ static int assemble(const nls_problem* p, const evaluation* ev, double* H, doubl
   }
   for (long long v = 0; v < p->n; ++v)
     if (p->fixed[v])
-      for (long long c = v * k; c < (v + 1) * k; ++c) H[c * N + c] += 1.0;
+      for (long long c = p->position[v] * k; c < (p->position[v] + 1) * k; ++c) H[c * N + c] += 1.0;
   for (long long i = 0; i < N && finite; ++i) finite = isfinite(g[i]);
   return finite;
 }
 
-/* delta = -(H + shift I)^{-1} g by LAPACK's Cholesky (the factor in L), checked as
- * CholeskySolver checks a solve: finite, |(H + shift I) delta + g| <= rtol |g|, -g^T delta > 0
- * (unless g = 0). 0 on success, 1 if the system counts as singular. H is symmetric: its rows are
- * its columns, whichever order LAPACK reads. */
+/* Row i of H times v, over the band (H is zero outside it). */
+static double row_product(const nls_problem* p, const double* H, const double* v, long long i) {
+  const long long N = p->n * p->k, lo = i > p->kd ? i - p->kd : 0, hi = i + p->kd + 1 < N ? i + p->kd + 1 : N;
+  return dot(H + i * N + lo, v + lo, hi - lo);
+}
+
+/* delta = -(H + shift I)^{-1} g by LAPACK's Cholesky, dense (potrf) or banded (pbtrf), the factor
+ * in L; checked as CholeskySolver checks a solve: finite, |(H + shift I) delta + g| <= rtol |g|,
+ * -g^T delta > 0 (unless g = 0). 0 on success, 1 if the system counts as singular. H is symmetric:
+ * its rows are its columns, whichever order LAPACK reads. */
 static int damped_solve(const nls_problem* p, const double* H, const double* g, double shift, long long N, double* L,
                         double* delta) {
   char lower = 'L';
-  int n = (int)N, one = 1, info = 0;
-  memcpy(L, H, N * N * sizeof(double));
-  for (long long i = 0; i < N; ++i) L[i * N + i] += shift, delta[i] = -g[i];
-  p->potrf(&lower, &n, L, &n, &info);
+  int n = (int)N, kd = (int)p->kd, ldab = kd + 1, one = 1, info = 0;
+  for (long long i = 0; i < N; ++i) delta[i] = -g[i];
+  if (p->kd >= N - 1) {
+    memcpy(L, H, N * N * sizeof(double));
+    for (long long i = 0; i < N; ++i) L[i * N + i] += shift;
+    p->potrf(&lower, &n, L, &n, &info);
+    if (!info) p->potrs(&lower, &n, &one, L, &n, delta, &n, &info);
+  } else { /* column j of the lower band: ab[(i - j) + j (kd + 1)] = H_ij, j <= i <= j + kd */
+    for (long long j = 0; j < N; ++j)
+      for (long long i = j; i <= j + kd && i < N; ++i) L[(i - j) + j * ldab] = H[i * N + j] + (i == j ? shift : 0.0);
+    p->pbtrf(&lower, &n, &kd, L, &ldab, &info);
+    if (!info) p->pbtrs(&lower, &n, &kd, &one, L, &ldab, delta, &n, &info);
+  }
   if (info) return 1;
-  p->potrs(&lower, &n, &one, L, &n, delta, &n, &info);
   double residual = 0.0, b2 = 0.0, curvature = 0.0;
   for (long long i = 0; i < N; ++i) {
-    if (info || !isfinite(delta[i])) return 1;
-    double s = dot(H + i * N, delta, N) + shift * delta[i] + g[i];
+    if (!isfinite(delta[i])) return 1;
+    double s = row_product(p, H, delta, i) + shift * delta[i] + g[i];
     residual += s * s;
     b2 += g[i] * g[i];
     curvature -= g[i] * delta[i];
@@ -192,9 +219,9 @@ static int damped_solve(const nls_problem* p, const double* H, const double* g, 
 }
 
 /* -g^T delta - 1/2 delta^T H delta: the decrease the Gauss-Newton model predicts (model_decrease). */
-static double model_decrease(const double* H, const double* g, const double* delta, long long N) {
+static double model_decrease(const nls_problem* p, const double* H, const double* g, const double* delta, long long N) {
   double linear = 0.0, quadratic = 0.0;
-  for (long long i = 0; i < N; ++i) linear += g[i] * delta[i], quadratic += delta[i] * dot(H + i * N, delta, N);
+  for (long long i = 0; i < N; ++i) linear += g[i] * delta[i], quadratic += delta[i] * row_product(p, H, delta, i);
   return -linear - 0.5 * quadratic;
 }
 
@@ -209,10 +236,14 @@ static int no_descent(const double* g, long long N) {
  * s->trial, its Jacobians kept with keep; 0, or the status that ends the compiled loop. */
 static int trial_cost(state* s, double alpha, int keep, double* f) {
   nls_problem* p = s->p;
-  double biggest = 0.0;
-  for (long long i = 0; i < s->N; ++i) s->tmp[i] = alpha * s->delta[i], biggest = fmax(biggest, fabs(s->tmp[i]));
+  double biggest = 0.0; /* alpha delta, pose by pose in the poses' order */
+  for (long long v = 0; v < p->n; ++v)
+    for (long long a = 0; a < p->k; ++a) {
+      const double t = alpha * s->delta[p->position[v] * p->k + a];
+      s->tmp[v * p->k + a] = t, biggest = fmax(biggest, fabs(t));
+    }
   if (!(biggest < p->huge)) return FALLBACK; /* the scale-safe retraction's case (LieGroupManifold.retr) */
-  const double* args[2] = {p->x, alpha == 1.0 ? s->delta : s->tmp};
+  const double* args[2] = {p->x, s->tmp};
   const long long arg_strides[2] = {p->s2, p->k};
   double* res[1] = {s->trial};
   const long long res_strides[1] = {p->s2};
@@ -271,7 +302,7 @@ static int gauss_newton_step(state* s, step_result* r) {
       return 0;
     }
   }
-  r->status = LINE_SEARCH_FAILED, r->stalled = 1, r->predicted = model_decrease(s->H, s->g, s->delta, s->N);
+  r->status = LINE_SEARCH_FAILED, r->stalled = 1, r->predicted = model_decrease(s->p, s->H, s->g, s->delta, s->N);
   return 0;
 }
 
@@ -291,7 +322,7 @@ static int lm_step(state* s, step_result* r) {
     lm_fail(s, r);
     return 0;
   }
-  const double predicted = model_decrease(s->H, s->g, s->delta, s->N);
+  const double predicted = model_decrease(s->p, s->H, s->g, s->delta, s->N);
   if (!(predicted > 0)) {
     r->status = no_descent(s->g, s->N);
     return 0;
@@ -324,7 +355,7 @@ static void dogleg_legs(state* s) {
     if (!damped_solve(p, s->H, s->g, SHIFTS[i] * s->scale, N, s->L, s->gauss_newton))
       s->has_gauss_newton = 1, s->shift = SHIFTS[i];
   double curvature = 0.0;
-  for (long long i = 0; i < N; ++i) curvature += s->g[i] * dot(s->H + i * N, s->g, N);
+  for (long long i = 0; i < N; ++i) curvature += s->g[i] * row_product(p, s->H, s->g, i);
   const double gg = dot(s->g, s->g, N);
   s->has_cauchy = curvature > 0;
   for (long long i = 0; i < N && s->has_cauchy; ++i) s->cauchy[i] = -(gg / curvature) * s->g[i];
@@ -362,7 +393,7 @@ static double dogleg_path(state* s, double radius) {
 static void dogleg_fail(state* s, step_result* r, int with_model) {
   if (s->radius < s->p->min_step || s->radius == 0) {
     r->status = NO_PROGRESS, r->stalled = 1;
-    if (with_model && s->has_gauss_newton) r->predicted = model_decrease(s->H, s->g, s->gauss_newton, s->N);
+    if (with_model && s->has_gauss_newton) r->predicted = model_decrease(s->p, s->H, s->g, s->gauss_newton, s->N);
   }
 }
 
@@ -382,7 +413,7 @@ static int dogleg_step(state* s, step_result* r) {
     return 0;
   }
   r->extra[2] = dogleg_path(s, radius);
-  const double predicted = model_decrease(s->H, s->g, s->delta, N);
+  const double predicted = model_decrease(s->p, s->H, s->g, s->delta, N);
   if (!(predicted > 0)) {
     r->status = no_descent(s->g, N);
     return 0;
@@ -427,7 +458,7 @@ static int stop_reason(const nls_problem* p, double grad_tol, double scale, doub
 static double predicted_decrease(state* s) {
   const double shift = s->p->method == LEVENBERG_MARQUARDT ? s->p->lam0 * s->scale : 0.0;
   if (damped_solve(s->p, s->H, s->g, shift, s->N, s->L, s->delta)) return NAN;
-  return model_decrease(s->H, s->g, s->delta, s->N);
+  return model_decrease(s->p, s->H, s->g, s->delta, s->N);
 }
 
 int small_system(nls_problem* p) {

@@ -18,7 +18,8 @@ from manopt_lie.factors.noise import Information, Isotropic
 from manopt_lie.linalg import SingularSystemError
 from manopt_lie.manifolds import LieGroupManifold, Power
 from manopt_lie.optim import Dogleg, GaussNewton, LeastSquaresProblem, LevenbergMarquardt, Status, _small_system
-from manopt_lie.problems import g2o
+from manopt_lie.optim.optimizer import Run
+from manopt_lie.problems import g2o, synthetic
 
 pytestmark = pytest.mark.skipif(_small_system._library() is None, reason="no C compiler: nothing compiled to test")
 
@@ -67,7 +68,8 @@ def assert_same_run(a, b):
     np.testing.assert_allclose(ha.step, hb.step, rtol=1e-6, atol=1e-12)
     assert sorted(ha.extra) == sorted(hb.extra)
     for key, expected in hb.extra.items():  # damping, alpha, radius, shift and kind exact; rho to round-off
-        np.testing.assert_allclose(ha.extra[key], expected, rtol=1e-6 if key in ("rho", "radius") else 0, atol=1e-9)
+        # (a gain ratio near convergence divides two decreases a few digits above round-off)
+        np.testing.assert_allclose(ha.extra[key], expected, rtol={"rho": 1e-4, "radius": 1e-6}.get(key, 0), atol=1e-9)
     np.testing.assert_allclose(a.x.as_matrix(), b.x.as_matrix(), atol=1e-9)
     assert a.fun == pytest.approx(b.fun, rel=1e-9, abs=1e-12)
 
@@ -87,6 +89,18 @@ def test_converges_as_the_python_loop(monkeypatch, method, group, n, noise):
     fast = compiled(optimizer, problem, x0)
     assert fast.status.converged and fast.nit >= 2
     assert_same_run(fast, python_loop(monkeypatch, optimizer, pose_graph(group, n, noise=noise, seed=n)[0], x0))
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("side", [10, 16])  # 300 and 768 unknowns: H banded in the reverse Cuthill-McKee order
+def test_a_banded_grid_as_the_python_loop(monkeypatch, method, side):
+    graph = synthetic.grid2d(side, side, seed=side).graph
+    x0 = graph.chordal_initialization()
+    run = Run("", graph.problem("geodesic"), method().stopping.for_problem(graph.problem("geodesic")), None)
+    plan = _small_system.plan(method(), run)
+    assert plan is not None and plan.kd < 3 * side * 3  # a band of a few rows of the grid
+    fast = compiled(method(), graph.problem("geodesic"), x0)
+    assert_same_run(fast, python_loop(monkeypatch, method(), graph.problem("geodesic"), x0))
 
 
 def assert_same_until_roundoff(a, b):
@@ -214,12 +228,13 @@ def test_threads_share_a_problem(method):
 
 @pytest.mark.parametrize(
     "case",
-    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too large", "no native kernels",
-     "subclass"],
+    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too large", "wide band",
+     "no native kernels", "subclass"],
 )
 def test_the_python_loop_outside_the_scope(monkeypatch, capsys, case):
     """Each of these runs the Python loop, which builds the problem's structure."""
-    problem, x0 = pose_graph(SE3, 65 if case == "too large" else 9, seed=8)  # 65 · 6 = 390 > MAX_UNKNOWNS
+    n = {"too large": 129, "wide band": 70}.get(case, 9)  # 774 > MAX_UNKNOWNS; 420 > DENSE_UNKNOWNS, no band
+    problem, x0 = pose_graph(SE3, n, closures=200 if case == "wide band" else 6, seed=8)
     options = {"callback": {}, "verbosity": {"verbosity": 1}, "diagonal damping": {"damping": "diagonal"},
                "pcg": {"linear_solver": "pcg"}, "time limit": {"max_time": 10.0}}.get(case, {})  # fmt: skip
     calls = []
