@@ -108,9 +108,11 @@ def _lapack() -> list[int]:
     loop's dense solves call, and their banded twins."""
     from scipy.linalg import cython_lapack
 
-    name, pointer = ctypes.pythonapi.PyCapsule_GetName, ctypes.pythonapi.PyCapsule_GetPointer
-    name.restype, name.argtypes = ctypes.c_char_p, [ctypes.py_object]
-    pointer.restype, pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    # Prototypes of our own: setting restype on ctypes.pythonapi's functions would change them for everyone.
+    name = ctypes.PYFUNCTYPE(ctypes.c_char_p, ctypes.py_object)(("PyCapsule_GetName", ctypes.pythonapi))
+    pointer = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.py_object, ctypes.c_char_p)(
+        ("PyCapsule_GetPointer", ctypes.pythonapi)
+    )
     capsules = [cython_lapack.__pyx_capi__[routine] for routine in ("dpotrf", "dpotrs", "dpbtrf", "dpbtrs")]  # type: ignore[attr-defined]
     return [int(pointer(capsule, name(capsule))) for capsule in capsules]
 
