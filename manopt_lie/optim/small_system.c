@@ -10,10 +10,10 @@
  * own, and its comments name the Python it mirrors.
  *
  * H = sum_e A_e^T A_e and g = sum_e A_e^T r_e are stored dense (at most 768 unknowns: the caller's
- * DENSE_UNKNOWNS and MAX_UNKNOWNS), in an order of the poses that keeps H banded (reverse Cuthill-McKee, from the
- * caller); the columns of fixed poses are zero in A_e and 1 on their diagonal, as
- * LeastSquaresProblem builds them. Solves are LAPACK's, dense or banded, and checked as
- * CholeskySolver checks a solution (its random probe aside).
+ * DENSE_UNKNOWNS and MAX_UNKNOWNS), in an order of the poses that keeps H banded (reverse
+ * Cuthill-McKee, from the caller); the columns of fixed poses are zero in A_e and 1 on their
+ * diagonal, as LeastSquaresProblem builds them. Solves are LAPACK's, dense or banded, and checked
+ * as CholeskySolver checks a solution (its random probe aside).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -22,8 +22,8 @@
 
 typedef int (*batch_fn)(long long m, const double** arg, const long long* arg_stride, double** res,
                         const long long* res_stride);
-/* LAPACK's Cholesky factorization and solve, as SciPy ships them (scipy.linalg.cython_lapack): the
- * routines the Python loop's dense solves call. */
+/* LAPACK's Cholesky factorization and solve, dense and banded, as SciPy ships them
+ * (scipy.linalg.cython_lapack): the dense ones are what the Python loop's dense solves call. */
 typedef void (*potrf_fn)(char* uplo, int* n, double* a, int* lda, int* info);
 typedef void (*potrs_fn)(char* uplo, int* n, int* nrhs, double* a, int* lda, double* b, int* ldb, int* info);
 typedef void (*pbtrf_fn)(char* uplo, int* n, int* kd, double* ab, int* ldab, int* info);
