@@ -66,8 +66,9 @@ BANDED_FROM = 128
 """Systems above this many unknowns are ordered for a band (:func:`_banded_order`); below, the
 ordering costs more than a dense factorization."""
 
-MAX_RECORDS = 100_000
-"""The most iterations (``max_iterations``) the compiled loop keeps a history for."""
+MAX_RECORDS = 10_000
+"""The most iterations (``max_iterations``) the compiled loop runs: it cannot be interrupted (a
+``KeyboardInterrupt`` waits for it), so a run allowed more takes the Python loop."""
 
 GAUSS_NEWTON, LEVENBERG_MARQUARDT, DOGLEG = 0, 1, 2
 """The methods' codes in ``small_system.c`` (an optimizer class's ``_compiled_as``)."""

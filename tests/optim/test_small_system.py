@@ -228,15 +228,16 @@ def test_threads_share_a_problem(method):
 
 @pytest.mark.parametrize(
     "case",
-    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too large", "wide band",
-     "no native kernels", "subclass"],
+    ["callback", "verbosity", "robust", "diagonal damping", "pcg", "time limit", "too many iterations", "too large",
+     "wide band", "no native kernels", "subclass"],
 )
 def test_the_python_loop_outside_the_scope(monkeypatch, capsys, case):
     """Each of these runs the Python loop, which builds the problem's structure."""
     n = {"too large": 129, "wide band": 70}.get(case, 9)  # 774 > MAX_UNKNOWNS; 420 > DENSE_UNKNOWNS, no band
     problem, x0 = pose_graph(SE3, n, closures=200 if case == "wide band" else 6, seed=8)
     options = {"callback": {}, "verbosity": {"verbosity": 1}, "diagonal damping": {"damping": "diagonal"},
-               "pcg": {"linear_solver": "pcg"}, "time limit": {"max_time": 10.0}}.get(case, {})  # fmt: skip
+               "pcg": {"linear_solver": "pcg"}, "time limit": {"max_time": 10.0},
+               "too many iterations": {"max_iterations": _small_system.MAX_RECORDS + 1}}.get(case, {})  # fmt: skip
     calls = []
     if case == "robust":
         (factor,) = problem.factors
