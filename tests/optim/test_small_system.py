@@ -92,6 +92,20 @@ def test_converges_as_the_python_loop(monkeypatch, method, group, n, noise):
 
 
 @pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize(
+    ("group", "n", "closures", "fixed"),
+    [(SE3, 10, 6, (3, 7)), (SE2, 5, 6, (0, 1, 2, 3, 4)), (SE2, 2, 0, (0,))],
+    ids=["fixed-inside", "all-fixed", "two-poses"],
+)
+def test_fixed_poses_as_the_python_loop(monkeypatch, method, group, n, closures, fixed):
+    make = functools.partial(pose_graph, group, n, closures=closures, seed=n, fixed=fixed)
+    problem, x0 = make()
+    fast = compiled(method(), problem, x0)
+    assert np.array_equal(fast.x.as_matrix()[list(fixed)], x0.as_matrix()[list(fixed)])  # never moved
+    assert_same_run(fast, python_loop(monkeypatch, method(), make()[0], x0))
+
+
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("side", [10, 16])  # 300 and 768 unknowns: H banded in the reverse Cuthill-McKee order
 def test_a_banded_grid_as_the_python_loop(monkeypatch, method, side):
     graph = synthetic.grid2d(side, side, seed=side).graph
