@@ -150,8 +150,13 @@ def _banded_order(edges: NDArray[np.int64], n: int, k: int) -> tuple[NDArray[np.
     N = n * k
     position = np.arange(n, dtype=np.int64)
     if N > BANDED_FROM:
-        graph = scipy.sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
-        position[reverse_cuthill_mckee(graph, symmetric_mode=False)] = np.arange(n)
+        # The poses' graph, both directions, as CSR arrays made here (SciPy's COO route and its own
+        # symmetrization took 0.2 ms on 27 poses, 25 times the ordering itself).
+        rows, cols = np.concatenate([edges[:, 0], edges[:, 1]]), np.concatenate([edges[:, 1], edges[:, 0]])
+        by_row = np.lexsort((cols, rows))  # rows sorted within (RCM breaks ties by the order stored)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n))])
+        graph = scipy.sparse.csr_matrix((np.ones(len(rows)), cols[by_row], indptr), shape=(n, n))
+        position[reverse_cuthill_mckee(graph, symmetric_mode=True)] = np.arange(n)
         kd = (int(np.abs(position[edges[:, 0]] - position[edges[:, 1]]).max()) + 1) * k - 1
         if 2 * kd * kd < N * N / 3:  # the band's N·kd² against the dense N³/3, halved at least
             return position, kd
