@@ -2,24 +2,23 @@
 compiled code (``small_system.c``).
 
 On a system of a few dozen unknowns a Python iteration is almost all calls — validation,
-bookkeeping, a dozen NumPy calls of a few microseconds each — and GTSAM's whole solve of a
-9-pose graph takes 0.4 ms. A pose graph whose one factor is the library's between factor on
-SE(2) or SE(3) with native kernels, of at most :data:`DENSE_UNKNOWNS` unknowns (or
-:data:`MAX_UNKNOWNS` where its ``H`` is banded), is therefore solved by ``small_system.c``: the
-iterations of :class:`GaussNewton`,
-:class:`LevenbergMarquardt` or :class:`Dogleg` — the same steps, acceptance and updates, the
-same stopping rule and collapse test — on a dense ``H`` factored by LAPACK's Cholesky (SciPy's, as
-the Python loop's), calling the factor's compiled kernels and the compiled retraction through
-their addresses. Its
-history is recorded into the run afterwards, with the times at which the iterations ended.
+bookkeeping, a dozen NumPy calls of a few microseconds each — and GTSAM's whole solve of a 9-pose
+graph takes 0.4 ms. A pose graph whose one factor is the library's between factor on SE(2) or
+SE(3) with native kernels, of at most :data:`DENSE_UNKNOWNS` unknowns (:data:`MAX_UNKNOWNS`
+where its ``H`` is banded), is therefore solved by ``small_system.c``: the iterations of
+:class:`GaussNewton`, :class:`LevenbergMarquardt` or :class:`Dogleg` — the same steps,
+acceptance and updates, the same stopping rule and collapse test — on an ``H`` factored by
+LAPACK's Cholesky, dense or banded (SciPy's), calling the factor's compiled kernels and the
+compiled retraction through their addresses. Its history is recorded into the run afterwards,
+with the times at which the iterations ended.
 
 The iterates are those of the Python loop up to round-off (sums in another order); one check is
-left out: a dense solve is checked on its right-hand side (finite, ``‖(H + μI)δ + g‖ ≤
-rtol·‖g‖``, ``−gᵀδ > 0``) but not on a random probe as well. Anything the compiled loop does not
-mirror — a start that is not finite (whose error the Python loop words), Gauss-Newton's singular
-system (which the Python loop raises), a step of a size the retraction computes by other
-kernels, a kernel that fails — makes it return before it changes anything, and the Python loop
-runs instead; so does any problem or setting outside its scope (:func:`plan`).
+left out: a solve is checked on its right-hand side (finite, ``‖(H + μI)δ + g‖ ≤ rtol·‖g‖``,
+``−gᵀδ > 0``) but not on a random probe as well. Anything the compiled loop does not mirror — a
+start that is not finite (whose error the Python loop words), Gauss-Newton's singular system
+(which the Python loop raises), a step of a size the retraction computes by other kernels, a
+kernel that fails — makes it return before it changes anything, and the Python loop runs
+instead; so does any problem or setting outside its scope (:func:`plan`).
 """
 
 from __future__ import annotations
@@ -180,8 +179,8 @@ def plan(optimizer: NonlinearLeastSquares, run: Run) -> _Problem | None:
     :class:`GaussNewton`, :class:`LevenbergMarquardt` (damping ``s·I``) or :class:`Dogleg` with
     the default linear solver; one between factor of SE(2)/SE(3) with native kernels, no robust
     loss, ``Power(G, n)``, ``2 ≤ n``, at most :data:`DENSE_UNKNOWNS` unknowns (:data:`MAX_UNKNOWNS`
-    where ``H`` is banded); no
-    callback, no progress table, no time limit, at most :data:`MAX_RECORDS` iterations."""
+    where ``H`` is banded); no callback, no progress table, no time limit, at most
+    :data:`MAX_RECORDS` iterations."""
     problem, stopping = run.problem, run.stopping
     method = vars(type(optimizer)).get("_compiled_as")  # the class's own: a subclass may change a step
     if method is None or not isinstance(problem, LeastSquaresProblem) or len(problem.factors) != 1:
