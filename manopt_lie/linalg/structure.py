@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ShapeError
 from ._analyses import digest
 from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
+from ._patterns import hessian_pattern
 
 __all__ = ["BlockStructure"]
 
@@ -112,6 +113,11 @@ class BlockStructure:
         if dense:
             self._build_full_pattern()
             self._hess_scatter, self._grad_scatter = self._dense_scatters()
+        elif (built := hessian_pattern(self.dims, self.offsets, self._factors)) is not None:
+            self._block_pattern, self._indptr, self._indices, self._diag_pos, scatters = built  # compiled
+            pairs = zip(scatters, self._factors, strict=True)
+            self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
+            self._grad_scatter = [g for _, g in scatters]
         else:
             block_ids, layout = self._build_hessian_pattern([f.var_ids for f in self._factors])
             scatters = [self._build_factor(f, b, layout) for f, b in zip(self._factors, block_ids, strict=True)]

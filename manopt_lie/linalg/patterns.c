@@ -1,0 +1,204 @@
+/* The index arrays of a block structure and of the triangle CHOLMOD factors, in one pass each.
+ *
+ * What manopt_lie/linalg/structure.py (BlockStructure._build_hessian_pattern, _build_factor,
+ * HessianScatter) and _triangles.py (permuted_block_triangle) build with NumPy, for a problem's
+ * set-up: the same arrays, entry for entry (tests/linalg/test_patterns.py), in a few passes over
+ * the blocks instead of a few dozen NumPy calls over the entries. The caller
+ * (manopt_lie/linalg/_patterns.py) sizes every output and uses these only where every index of
+ * H fits in 32 bits.
+ *
+ * Notation (structure.py's): variable v has dimension d_v and owns coordinates o_v ... o_v + d_v - 1;
+ * block k = (w, v) holds the rows of w in the columns of v; each column of v has length L_v (the
+ * dimensions of the rows of v's blocks), v's columns start at base_v, and block k starts
+ * within_k down each of them: entry (o_w + i, o_v + j) sits at base_v + j L_v + within_k + i.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+
+typedef int64_t i64;
+typedef int32_t i32;
+
+static int ascending(const void* a, const void* b) {
+  i64 x = *(const i64*)a, y = *(const i64*)b;
+  return (x > y) - (x < y);
+}
+
+static void sort(i64* a, i64 n) {
+  if (n > 24) {
+    qsort(a, (size_t)n, sizeof(i64), ascending);
+    return;
+  }
+  for (i64 i = 1; i < n; ++i) { /* a column of a pose graph holds a handful of blocks */
+    i64 x = a[i], j = i - 1;
+    for (; j >= 0 && a[j] > x; --j) a[j + 1] = a[j];
+    a[j + 1] = x;
+  }
+}
+
+/* The position of `row` in the sorted rows[lo:hi] (present by construction). */
+static i64 find(const i64* rows, i64 lo, i64 hi, i64 row) {
+  while (hi - lo > 8) {
+    i64 mid = lo + (hi - lo) / 2;
+    if (rows[mid] <= row) lo = mid; else hi = mid;
+  }
+  while (rows[lo] != row) ++lo;
+  return lo;
+}
+
+/* The variables' graph: block k of column v for every pair of slots (s, t) of every edge (rows of
+ * slot s in the columns of slot t) and every diagonal block, sorted and without repeats, as block
+ * CSC (bptr: nv + 1, brows: room for nv + sum_f m_f a_f^2, filled with the nb blocks first); and
+ * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t). Returns nb, -1 without memory. */
+i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i64* bptr,
+                  i64* brows, i64* const* blocks) {
+  i64* fill = calloc((size_t)nv + 1, sizeof(i64));
+  if (!fill) return -1;
+  for (i64 v = 0; v < nv; ++v) fill[v + 1] = 1; /* the diagonal block */
+  for (i64 f = 0; f < n_factors; ++f)
+    for (i64 e = 0; e < m[f]; ++e)
+      for (i64 t = 0; t < arity[f]; ++t) fill[ids[f][e * arity[f] + t] + 1] += arity[f];
+  for (i64 v = 0; v < nv; ++v) fill[v + 1] += fill[v];
+  for (i64 v = 0; v < nv; ++v) brows[fill[v]++] = v;
+  for (i64 f = 0; f < n_factors; ++f)
+    for (i64 e = 0; e < m[f]; ++e) {
+      const i64* edge = ids[f] + e * arity[f];
+      for (i64 t = 0; t < arity[f]; ++t)
+        for (i64 s = 0; s < arity[f]; ++s) brows[fill[edge[t]]++] = edge[s];
+    }
+  /* fill[v] is now the end of column v's candidates, fill[v - 1] (0 for v = 0) their start. */
+  i64 nb = 0, start = 0;
+  for (i64 v = 0; v < nv; ++v) {
+    i64 end = fill[v];
+    sort(brows + start, end - start);
+    bptr[v] = nb;
+    for (i64 i = start, last = -1; i < end; ++i) /* nb <= i: written behind what is read */
+      if (brows[i] != last) last = brows[nb++] = brows[i];
+    start = end;
+  }
+  bptr[nv] = nb;
+  free(fill);
+  for (i64 f = 0; f < n_factors; ++f) {
+    i64 a = arity[f];
+    for (i64 t = 0; t < a; ++t)
+      for (i64 e = 0; e < m[f]; ++e) {
+        const i64* edge = ids[f] + e * a;
+        i64 v = edge[t];
+        for (i64 s = 0; s < a; ++s) blocks[f][(t * m[f] + e) * a + s] = find(brows, bptr[v], bptr[v + 1], edge[s]);
+      }
+  }
+  return nb;
+}
+
+/* The layout of H.data: L (nv), base (nv + 1) and within (nb). Returns nnz = base[nv]. */
+i64 layout(i64 nv, const i64* dims, const i64* bptr, const i64* brows, i64* L, i64* base, i64* within) {
+  base[0] = 0;
+  for (i64 v = 0; v < nv; ++v) {
+    i64 length = 0;
+    for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
+      within[k] = length;
+      length += dims[brows[k]];
+    }
+    L[v] = length;
+    base[v + 1] = base[v] + length * dims[v];
+  }
+  return base[nv];
+}
+
+/* H's scalar CSC pattern from the blocks and the layout: indptr (n + 1), indices (nnz) and the
+ * position of every diagonal entry (n). Each column of v lists the rows of v's blocks in order. */
+void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i64* bptr, const i64* brows,
+                    const i64* L, const i64* base, i32* indptr, i32* indices, i32* diagonal) {
+  for (i64 v = 0; v < nv; ++v)
+    for (i64 j = 0; j < dims[v]; ++j) {
+      i64 at = base[v] + j * L[v];
+      indptr[offsets[v] + j] = (i32)at;
+      for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
+        i64 w = brows[k];
+        if (w == v) diagonal[offsets[v] + j] = (i32)(at + j);
+        for (i64 i = 0; i < dims[w]; ++i) indices[at++] = (i32)(offsets[w] + i);
+      }
+    }
+  indptr[offsets[nv]] = (i32)base[nv];
+}
+
+/* One factor type's scatters: where entry [p, q] of every edge's A_e^T A_e goes in H.data (m W^2,
+ * row p in slot t at coordinate j of its variable b: column o_b + j, which starts at
+ * base_b + j L_b; column q in slot s at coordinate i: row i of block[t, e, s] in it) and the
+ * coordinate of every column of A_e (m W). */
+void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, const i64* blocks,
+                    const i64* offsets, const i64* L, const i64* base, const i64* within, i32* positions,
+                    i32* columns) {
+  i64 width = 0;
+  for (i64 s = 0; s < arity; ++s) width += slot_dims[s];
+  for (i64 e = 0; e < m; ++e) {
+    const i64* edge = ids + e * arity;
+    i32* column = columns + e * width;
+    for (i64 s = 0; s < arity; ++s)
+      for (i64 i = 0; i < slot_dims[s]; ++i) *column++ = (i32)(offsets[edge[s]] + i);
+    i32* out = positions + e * width * width;
+    for (i64 t = 0; t < arity; ++t) {
+      i64 b = edge[t];
+      for (i64 j = 0; j < slot_dims[t]; ++j) {
+        i64 row = base[b] + j * L[b];
+        for (i64 s = 0; s < arity; ++s) {
+          i64 at = row + within[blocks[(t * m + e) * arity + s]];
+          for (i64 i = 0; i < slot_dims[s]; ++i) *out++ = (i32)(at + i);
+        }
+      }
+    }
+  }
+}
+
+/* The lower (upper != 0: the upper) triangle of B = P H P^T, P putting variable order[c] c-th with
+ * its coordinates in order, as CSC (indptr: n + 1, rows: (nnz + n) / 2, sorted) and the position in
+ * H.data of each entry (gather). Column (c, j) of B (variable v = order[c], coordinate j) holds
+ * the rows i >= j of v's diagonal block, then the off-diagonal blocks below it in B's order (the
+ * upper triangle: the blocks above, then the rows i <= j). Returns 0, -1 without memory. */
+int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* bptr, const i64* brows,
+                      const i64* order, int upper, i32* indptr, i32* rows, i32* gather) {
+  i64 nb = bptr[nv];
+  i64* rank = malloc(sizeof(i64) * (size_t)(2 * nv + 2 * nb + 2));
+  if (!rank) return -1;
+  i64* new_offsets = rank + nv;      /* nv + 1 */
+  i64* keys = new_offsets + nv + 1;  /* one column's off-diagonal blocks: rank * nb + k */
+  i64* start = keys + nb;            /* s_k: where block k's entry (o_w, o_v) sits in H.data */
+  for (i64 c = 0; c < nv; ++c) rank[order[c]] = c;
+  new_offsets[0] = 0;
+  for (i64 c = 0; c < nv; ++c) new_offsets[c + 1] = new_offsets[c] + dims[order[c]];
+  i64 offset = 0;
+  for (i64 v = 0; v < nv; ++v) {
+    i64 first = h_indptr[offset], down = 0;
+    for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
+      start[k] = first + down;
+      down += dims[brows[k]];
+    }
+    offset += dims[v];
+  }
+  i64 at = 0, column = 0;
+  for (i64 c = 0; c < nv; ++c) {
+    i64 v = order[c], d = dims[v], length = 0, count = 0, diagonal = -1;
+    for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
+      i64 r = rank[brows[k]];
+      length += dims[brows[k]];
+      if (r == c) diagonal = k;
+      else if (upper ? r < c : r > c) keys[count++] = r * nb + k;
+    }
+    sort(keys, count);
+    for (i64 j = 0; j < d; ++j, ++column) {
+      i64 step = j * length; /* from coordinate 0 to j in H's columns of v */
+      indptr[column] = (i32)at;
+      if (!upper)
+        for (i64 i = j; i < d; ++i, ++at) rows[at] = (i32)(new_offsets[c] + i), gather[at] = (i32)(start[diagonal] + step + i);
+      for (i64 x = 0; x < count; ++x) {
+        i64 k = keys[x] % nb, r = keys[x] / nb;
+        for (i64 i = 0; i < dims[brows[k]]; ++i, ++at)
+          rows[at] = (i32)(new_offsets[r] + i), gather[at] = (i32)(start[k] + step + i);
+      }
+      if (upper)
+        for (i64 i = 0; i <= j; ++i, ++at) rows[at] = (i32)(new_offsets[c] + i), gather[at] = (i32)(start[diagonal] + step + i);
+    }
+  }
+  indptr[column] = (i32)at;
+  free(rank);
+  return 0;
+}
