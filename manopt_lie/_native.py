@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Native", "Pinned", "compile_functions", "enabled", "load"]
+__all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "load"]
 
 FloatArray = NDArray[np.float64]
 FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -70,7 +70,7 @@ def cache_dir() -> Path | None:
 _FLOAT64 = np.dtype(np.float64)
 
 
-def _address(a: FloatArray) -> int:
+def address(a: np.ndarray) -> int:
     """The address of ``a``'s first element: through the buffer protocol when ``a`` is writable and
     not empty (0.35 µs), else NumPy's ctypes interface (1.1 µs: it builds an object per call).
     A kernel's call takes the address of each of its 4–6 arrays, its own work a few µs."""
@@ -119,19 +119,19 @@ class Native:
             fits = a.shape == ((size,) if shared else (m, size))
             if isinstance(a, Pinned):  # made float64 and C-contiguous when pinned
                 what: object = "pinned"
-                address = a.address
+                at = a.address
             else:
                 what, fits = a.dtype, fits and a.dtype is _FLOAT64 and a.flags.c_contiguous
-                address = _address(a) if fits else 0
+                at = address(a) if fits else 0
             if not fits:
                 raise ValueError(f"native kernel: an argument of shape {a.shape} ({what}) is not ({m}, {size})")
-            pointers.append(address)
+            pointers.append(at)
             strides.append(0 if shared else size)
         results = []
         for o, size in zip(outs, self._sizes_out, strict=True):
             if o.dtype is not _FLOAT64 or not o.flags.c_contiguous or o.shape != (m, size) or not o.flags.writeable:
                 raise ValueError(f"native kernel: a result of shape {o.shape} ({o.dtype}) is not ({m}, {size})")
-            results.append(_address(o))
+            results.append(address(o))
         status = self._driver(
             ctypes.c_longlong(m), self._pointers_in(*pointers), self._strides_in(*strides),
             self._pointers_out(*results), self._strides_out,

@@ -40,6 +40,7 @@ _SIGNATURES = {
     "expand_pattern": (None, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "factor_scatter": (None, [_I, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _P, _P, _P]),
+    "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
 }
 
 
@@ -56,8 +57,7 @@ def _library() -> Any:
     return library
 
 
-def _at(a: np.ndarray) -> int:
-    return int(a.ctypes.data)
+_at = _native.address
 
 
 def _pointers(arrays: Sequence[np.ndarray]) -> Any:

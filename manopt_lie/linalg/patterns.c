@@ -202,3 +202,61 @@ int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* b
   free(rank);
   return 0;
 }
+
+/* CHOLMOD's supernodal symbolic factor of B from the variables' one: supernode k of the variables'
+ * graph (variables super_b[k] ... super_b[k + 1] - 1 of B's order, block rows s_b[pi_b[k] ...
+ * pi_b[k + 1] - 1]) becomes the supernode of their coordinates, with the coordinates of its block
+ * rows as its rows. The blocks are dense, so each coordinate's column holds what its variable's
+ * does (below the diagonal). Writes super, pi, px (nsuper + 1), s (the rows) and colcount (n: the
+ * rows of each column from its diagonal down, as CHOLMOD keeps them), and sizes = (xsize,
+ * maxcsize, maxesize) as cholmod_super_symbolic defines them. Returns 0; -1 without memory or
+ * where an index passes 32 bits (CHOLMOD's int version). */
+int expand_supernodes(i64 nsuper, const i64* dims, const i32* super_b, const i32* pi_b, const i32* s_b, i32* super,
+                      i32* pi, i32* px, i32* s, i32* colcount, i64* sizes) {
+  i64 nv = super_b[nsuper];
+  i64* offsets = malloc(sizeof(i64) * (size_t)(nv + 1));
+  if (!offsets) return -1;
+  offsets[0] = 0;
+  for (i64 c = 0; c < nv; ++c) offsets[c + 1] = offsets[c] + dims[c];
+  i64 n = offsets[nv];
+  i64* supermap = malloc(sizeof(i64) * (size_t)(n > 0 ? n : 1));
+  if (!supermap) {
+    free(offsets);
+    return -1;
+  }
+  i64 rows = 0, entries = 0, maxcsize = 1, maxesize = 1;
+  for (i64 k = 0; k < nsuper; ++k) {
+    super[k] = (i32)offsets[super_b[k]];
+    pi[k] = (i32)rows;
+    px[k] = (i32)entries;
+    for (i64 p = pi_b[k]; p < pi_b[k + 1]; ++p) {
+      i64 w = s_b[p];
+      for (i64 i = 0; i < dims[w]; ++i) s[rows++] = (i32)(offsets[w] + i);
+    }
+    i64 first = offsets[super_b[k]], last = offsets[super_b[k + 1]], nscol = last - first, nsrow = rows - pi[k];
+    for (i64 j = first; j < last; ++j) supermap[j] = k, colcount[j] = (i32)(nsrow - (j - first));
+    entries += nscol * nsrow;
+    if (entries > INT32_MAX || rows > INT32_MAX) {
+      free(supermap), free(offsets);
+      return -1;
+    }
+  }
+  super[nsuper] = (i32)n, pi[nsuper] = (i32)rows, px[nsuper] = (i32)entries;
+  /* The largest update of a supernode to an ancestor (C: ndrow2 x ndrow1) and the largest part below
+   * a supernode's diagonal (E), as cholmod_super_symbolic2 computes them. */
+  for (i64 d = 0; d < nsuper; ++d) {
+    i64 nscol = super[d + 1] - super[d], p = pi[d] + nscol, plast = p, pend = pi[d + 1];
+    if (pend - p > maxesize) maxesize = pend - p;
+    i64 slast = p == pend ? -1 : supermap[s[p]];
+    for (; p <= pend; ++p) {
+      i64 k = p == pend ? -1 : supermap[s[p]];
+      if (k != slast) {
+        if ((pend - plast) * (p - plast) > maxcsize) maxcsize = (pend - plast) * (p - plast);
+        plast = p, slast = k;
+      }
+    }
+  }
+  sizes[0] = entries, sizes[1] = maxcsize, sizes[2] = maxesize;
+  free(supermap), free(offsets);
+  return 0;
+}

@@ -1,0 +1,176 @@
+"""A solve's set-up in compiled code (``linalg._patterns``, ``patterns.c``) against the NumPy builds
+it replaces, AMD called directly against CVXOPT's interface, and CHOLMOD's factor of ``B = P H Pᵀ``
+made from the variables' analysis (``Cholmod._expand``) against CHOLMOD's analysis of ``B``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from manopt_lie.linalg import BlockStructure, _amd, _cholmod, _patterns, structure
+from manopt_lie.linalg._triangles import permuted_block_triangle
+from manopt_lie.linalg.selected_inverse import _cholmod_factor
+
+from .helpers import pose_graph, random_factor_graph, random_values
+
+compiled = pytest.mark.skipif(_patterns._library() is None, reason="no C compiler here")
+direct = pytest.mark.skipif(not _cholmod.available(), reason="CHOLMOD cannot be called directly here")
+
+
+def with_ternary(rng: np.random.Generator, n_vars: int) -> tuple[np.ndarray, list[tuple[np.ndarray, int]]]:
+    """:func:`random_factor_graph` and a factor type of arity 3 on the 3-dimensional variables."""
+    dims, factors = random_factor_graph(rng, n_vars=n_vars)
+    small = np.flatnonzero(dims == 3)
+    triples = np.stack([rng.permutation(small)[:3] for _ in range(6)])
+    return dims, [*factors, (triples, 5)]
+
+
+def numpy_structure(monkeypatch: pytest.MonkeyPatch, dims: np.ndarray, factors: list, **kwargs) -> BlockStructure:
+    with monkeypatch.context() as m:
+        m.setattr(structure, "hessian_pattern", lambda *args: None)
+        return BlockStructure(dims, factors, **kwargs)
+
+
+@compiled
+@pytest.mark.parametrize("seed", range(6))
+def test_the_compiled_structure_is_numpys(monkeypatch, seed):
+    """Pattern, block pattern, diagonal positions and both scatters: the same arrays, the same
+    dtypes; hence the same ``H`` and ``g`` bit for bit."""
+    rng = np.random.default_rng(seed)
+    dims, factors = with_ternary(rng, n_vars=int(rng.integers(9, 60)))
+    made, reference = BlockStructure(dims, factors), numpy_structure(monkeypatch, dims, factors)
+    pairs = [(made.indptr, reference.indptr), (made.indices, reference.indices),
+             (made.diagonal_positions, reference.diagonal_positions)]  # fmt: skip
+    pairs += zip(made.block_pattern, reference.block_pattern, strict=True)
+    pairs += [(a.whole, b.whole) for a, b in zip(made._hess_scatter, reference._hess_scatter, strict=True)]
+    pairs += zip(made._grad_scatter, reference._grad_scatter, strict=True)
+    for a, b in pairs:
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+    blocks, residuals, weights = random_values(rng, dims, factors)
+    for (H1, g1), (H2, g2) in [(s.normal_equations(blocks, residuals, weights) for s in (made, reference))]:
+        np.testing.assert_array_equal(H1.data, H2.data)
+        np.testing.assert_array_equal(g1, g2)
+
+
+@compiled
+@pytest.mark.parametrize("upper", [False, True], ids=["lower", "upper"])
+def test_the_compiled_triangle_is_numpys(rng, upper):
+    dims, factors = with_ternary(rng, n_vars=40)
+    S = BlockStructure(dims, factors)
+    for order in (np.arange(dims.size), rng.permutation(dims.size), S.variable_ordering()):
+        made = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper)
+        assert made is not None
+        for a, b in zip(made, permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper), strict=True):
+            assert a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+
+
+def test_without_compiled_code_numpy_builds_the_structure(monkeypatch, rng):
+    """No compiler: ``hessian_pattern`` and the triangle decline, and the NumPy builds serve."""
+    monkeypatch.setattr(_patterns, "_library", lambda: None)
+    dims, factors = random_factor_graph(rng)
+    assert _patterns.hessian_pattern(np.asarray(dims), np.zeros(dims.size + 1, dtype=np.intp), []) is None
+    S = BlockStructure(dims, factors)
+    assert _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, np.arange(dims.size)) is None
+    blocks, residuals, _ = random_values(rng, dims, factors)
+    H, _ = S.normal_equations(blocks, residuals)
+    assert H.nnz == S.nnz and S._hess_scatter[0].whole is not None
+
+
+@pytest.mark.skipif(_amd._library() is None, reason="AMD cannot be called directly here")
+@pytest.mark.parametrize("seed", range(4))
+def test_amd_called_directly_orders_as_cvxopt(seed):
+    from cvxopt import amd, matrix, spmatrix
+
+    dims, factors = random_factor_graph(np.random.default_rng(seed), n_vars=150)
+    indptr, rows = BlockStructure(dims, factors).block_pattern
+    cols = np.repeat(np.arange(dims.size), np.diff(indptr))
+    lower = rows >= cols
+    pattern = spmatrix(1.0, matrix(rows[lower].astype(np.int64)), matrix(cols[lower].astype(np.int64)),
+                       (dims.size, dims.size))  # fmt: skip
+    np.testing.assert_array_equal(_amd.amd_order(indptr, rows), np.asarray(amd.order(pattern, "L")).ravel())
+    assert _amd.amd_order(indptr.astype(np.int64), rows.astype(np.int64)) is None  # 32-bit indices only
+
+
+def _factor(S: BlockStructure, supernodal: bool | None) -> _cholmod.Cholmod:
+    return _cholmod.Cholmod(S.indptr, S.indices, S.fill_reducing_ordering(), supernodal, (S.dims, *S.block_pattern),
+                            variables=S.variable_ordering())  # fmt: skip
+
+
+def _analysed(monkeypatch: pytest.MonkeyPatch, S: BlockStructure, supernodal: bool | None) -> _cholmod.Cholmod:
+    """The factor from CHOLMOD's analysis of ``B`` itself (the expansion declined)."""
+    with monkeypatch.context() as m:
+        m.setattr(_cholmod.Cholmod, "_expand", lambda *args: False)
+        return _factor(S, supernodal)
+
+
+@direct
+@compiled
+@pytest.mark.parametrize("supernodal", [True, False, None], ids=["supernodal", "simplicial", "auto"])
+@pytest.mark.parametrize(("d", "n_poses"), [(2, 300), (3, 200), (6, 120)])
+def test_the_factor_from_the_variables_is_the_analysis_of_b(monkeypatch, rng, supernodal, d, n_poses):
+    """Made from the variables' analysis, the factor has the order, kind and cost of CHOLMOD's analysis
+    of ``B``; its ``L`` is the Cholesky factor of ``P H Pᵀ``; its solves are ``H``'s, also after
+    factorizations of other values and for many right-hand sides."""
+    S, blocks, residuals = pose_graph(rng, n_poses=n_poses, d=d)
+    H, g = S.normal_equations(blocks, residuals)
+    S.add_diagonal(H, 1.0, inplace=True)
+    made, analysed = _factor(S, supernodal), _analysed(monkeypatch, S, supernodal)
+    assert made.supernodal == analysed.supernodal and (supernodal is None or made.supernodal is supernodal)
+    assert made.cost == analysed.cost
+    np.testing.assert_array_equal(made.permutation(), analysed.permutation())
+    dense = H.toarray()
+    perm = made.permutation()
+    for scale in (1.0, 3.0):
+        made.factorize(scale * H.data)
+        np.testing.assert_allclose(made.solve(g), np.linalg.solve(scale * dense, g), rtol=1e-8, atol=1e-12)
+    L = _cholmod_factor(made, 3.0 * H).L.toarray()
+    expected = np.linalg.cholesky(3.0 * dense[np.ix_(perm, perm)])
+    np.testing.assert_allclose(L, expected, rtol=1e-9, atol=1e-9 * abs(expected).max())
+    many = rng.standard_normal((S.n, 4))
+    np.testing.assert_allclose(made.solve(many), np.linalg.solve(3.0 * dense, many), rtol=1e-8, atol=1e-12)
+
+
+@direct
+@compiled
+def test_large_supernodes_factor_right(rng):
+    """SE(3)-sized blocks on a graph with fill (a grid with long chords): the expanded supernodes
+    and the update workspaces CHOLMOD sizes from them hold a factorization of ``H``."""
+    n = 400
+    grid = [(i, i + 1) for i in range(n - 1) if (i + 1) % 20] + [(i, i + 20) for i in range(n - 20)]
+    chords = [tuple(rng.choice(n, 2, replace=False)) for _ in range(40)]
+    edges = np.array(grid + chords)
+    S = BlockStructure(np.full(n, 6), [(edges, 6), (np.zeros((1, 1), dtype=int), 6)])
+    blocks = [rng.standard_normal((len(edges), 6, 12)), np.eye(6)[None]]
+    H, g = S.normal_equations(blocks, [rng.standard_normal((len(edges), 6)), np.zeros((1, 6))])
+    S.add_diagonal(H, 1e-3, inplace=True)
+    factor = _factor(S, True)
+    assert factor.supernodal and factor._factor().nsuper > 1
+    factor.factorize(H.data)
+    x = factor.solve(g)
+    assert np.linalg.norm(H @ x - g) <= 1e-9 * np.linalg.norm(g)
+    np.testing.assert_allclose(x, sp.linalg.spsolve(H.tocsc(), g), rtol=1e-6, atol=1e-9)
+
+
+@direct
+def test_mixed_dimensions_and_a_declined_expansion_analyse_b(monkeypatch, rng):
+    """Variables of dimensions 3 and 6 are not expanded (the column counts of ``B`` do not follow
+    from the variables'); an expansion that cannot be made (an index past 32 bits) frees what it
+    allocated and leaves the analysis of ``B``. Both factor right."""
+    dims, factors = random_factor_graph(rng, n_vars=45)
+    S = BlockStructure(dims, factors)
+    calls = []
+    monkeypatch.setattr(_cholmod.Cholmod, "_expand", lambda *args: calls.append(args) or False)
+    _factor(S, None)
+    assert not calls
+    monkeypatch.undo()
+    graph, blocks, residuals = pose_graph(rng, n_poses=80, d=3)
+    H, g = graph.normal_equations(blocks, residuals)
+    monkeypatch.setattr(_cholmod.Cholmod, "_expand_supernodes", lambda *args: False)
+    for supernodal in (True, False):
+        factor = _factor(graph, supernodal)
+        assert factor.supernodal is supernodal
+        factor.factorize(H.data)
+        np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
