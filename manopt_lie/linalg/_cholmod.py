@@ -432,8 +432,8 @@ class Cholmod:
             lib.cholmod_free_factor(byref(handle), self._common)
             raise
         if not supernodal:
-            counts = np.repeat(d * _array(block.ColCount, np.int32, nv), d) - np.tile(np.arange(d, dtype=np.int32), nv)
-            _array(factor.ColCount, np.int32, n)[:] = counts
+            counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
+            np.subtract(d * _array(block.ColCount, np.int32, nv)[:, None], np.arange(d, dtype=np.int32), out=counts)
             factor.is_ll = 0
         factor.ordering = _NATURAL
         lib.cholmod_free_factor(byref(self._handle), self._common)

@@ -41,6 +41,8 @@ def exclusive_cumsum(a: IntArray) -> IntArray:
 def coordinates(offsets: IntArray, dims: IntArray, variables: IntArray) -> IntArray:
     """The coordinates ``o_v … o_v + d_v − 1`` of every variable ``v`` of ``variables``, in that
     order, concatenated (``offsets``: ``[0, cumsum(dims)]``)."""
+    if dims.size and dims.min() == dims.max():  # one dimension d: o_v + 0 … d − 1, side by side
+        return (offsets[variables][:, None] + np.arange(int(dims[0]))).reshape(-1)
     d = dims[variables]
     return np.repeat(offsets[variables] - exclusive_cumsum(d)[:-1], d) + np.arange(int(d.sum()))
 
@@ -72,15 +74,16 @@ def check_factor(k: int, var_ids: ArrayLike, residual_dim: int, dims: IntArray) 
     if ids.shape[0] == 0:
         raise ValueError(f"factor {k}: has no edges (leave empty factor types out)")
     ids = ids.astype(np.intp)
-    bad = (ids < 0) | (ids >= dims.size)
-    if bad.any():
-        e, s = np.argwhere(bad)[0]
+    if ids.min() < 0 or ids.max() >= dims.size:
+        e, s = np.argwhere((ids < 0) | (ids >= dims.size))[0]
         raise ValueError(f"factor {k}, edge {e}, slot {s}: variable id {ids[e, s]} is outside [0, {dims.size})")
-    srt = np.sort(ids, axis=1)
+    srt = np.sort(ids, axis=1) if ids.shape[1] > 2 else ids  # two slots: compared as they are
     dup = srt[:, 1:] == srt[:, :-1]
     if dup.any():
         e = np.argwhere(dup)[0, 0]
         raise ValueError(f"factor {k}, edge {e}: touches variable {srt[e][1:][dup[e]][0]} in two slots")
+    if dims.min() == dims.max():
+        return ids, (int(dims[0]),) * ids.shape[1]
     slot_dims = dims[ids]
     mixed = slot_dims != slot_dims[0]
     if mixed.any():
