@@ -39,7 +39,7 @@ _SIGNATURES = {
     "layout": (_I, [_I, _P, _P, _P, _P, _P, _P]),
     "expand_pattern": (None, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "factor_scatter": (None, [_I, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
-    "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _P, _P, _P]),
+    "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
 }
 
@@ -117,7 +117,10 @@ def permuted_block_triangle(
     size = (int(indptr[-1]) + n) // 2  # one triangle of a symmetric pattern, its diagonal included
     out_ptr, rows, gather = np.empty(n + 1, np.int32), np.empty(size, np.int32), np.empty(size, np.int32)
     as64 = [np.ascontiguousarray(a, dtype=np.int64) for a in (dims, block_indptr, block_rows, order)]
-    if library.permuted_triangle(nv, *(_at(a) for a in (as64[0], indptr, *as64[1:])), int(upper), _at(out_ptr),
-                                 _at(rows), _at(gather)) < 0:  # fmt: skip
+    status = library.permuted_triangle(nv, *(_at(a) for a in (as64[0], indptr, *as64[1:])), int(upper), size,
+                                       _at(out_ptr), _at(rows), _at(gather))  # fmt: skip
+    if status == -1:
         raise MemoryError("patterns.c: no memory for the permuted triangle")
+    if status < 0 or out_ptr[-1] != size:
+        raise ValueError("permuted_block_triangle: the blocks do not make H's pattern (its indptr)")
     return out_ptr, rows, gather

@@ -153,9 +153,10 @@ void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, cons
  * its coordinates in order, as CSC (indptr: n + 1, rows: (nnz + n) / 2, sorted) and the position in
  * H.data of each entry (gather). Column (c, j) of B (variable v = order[c], coordinate j) holds
  * the rows i >= j of v's diagonal block, then the off-diagonal blocks below it in B's order (the
- * upper triangle: the blocks above, then the rows i <= j). Returns 0, -1 without memory. */
+ * upper triangle: the blocks above, then the rows i <= j); size: the room in rows and gather. Returns
+ * 0, -1 without memory, -2 where the blocks would write past size (they do not make H's pattern). */
 int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* bptr, const i64* brows,
-                      const i64* order, int upper, i32* indptr, i32* rows, i32* gather) {
+                      const i64* order, int upper, i64 size, i32* indptr, i32* rows, i32* gather) {
   i64 nb = bptr[nv];
   i64* rank = malloc(sizeof(i64) * (size_t)(2 * nv + 2 * nb + 2));
   if (!rank) return -1;
@@ -184,6 +185,12 @@ int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* b
       else if (upper ? r < c : r > c) keys[count++] = r * nb + k;
     }
     sort(keys, count);
+    i64 stream = 0;
+    for (i64 x = 0; x < count; ++x) stream += dims[brows[keys[x] % nb]];
+    if (diagonal < 0 || at + d * stream + d * (d + 1) / 2 > size) { /* not the blocks of H's pattern */
+      free(rank);
+      return -2;
+    }
     for (i64 j = 0; j < d; ++j, ++column) {
       i64 step = j * length; /* from coordinate 0 to j in H's columns of v */
       indptr[column] = (i32)at;

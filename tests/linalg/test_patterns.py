@@ -176,3 +176,34 @@ def test_mixed_dimensions_and_a_declined_expansion_analyse_b(monkeypatch, rng):
         assert factor.supernodal is supernodal
         factor.factorize(H.data)
         np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
+
+
+@compiled
+def test_blocks_that_do_not_make_the_pattern_are_refused(rng):
+    """The triangle is built from the blocks into arrays sized by ``H``'s pattern: blocks of another
+    pattern (here more of them) raise instead of writing past those arrays."""
+    graph, _, _ = pose_graph(rng, n_poses=30, d=3)
+    chain = BlockStructure(np.full(30, 3), [(np.stack([np.arange(29), np.arange(1, 30)], axis=1), 3)])
+    with pytest.raises(ValueError, match="do not make H's pattern"):
+        _patterns.permuted_block_triangle(chain.indptr, graph.dims, *graph.block_pattern, np.arange(30))
+
+
+@direct
+@compiled
+@pytest.mark.parametrize("supernodal", [True, False], ids=["supernodal", "simplicial"])
+def test_a_factor_made_from_the_variables_refuses_an_indefinite_h_and_recovers(rng, supernodal):
+    """A failed factorization (a negative pivot) raises, leaves the made factor usable for the next
+    values (LM's larger damping) and freeable."""
+    from manopt_lie.linalg import SingularSystemError
+
+    S, blocks, residuals = pose_graph(rng, n_poses=40, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    factor = _factor(S, supernodal)
+    bad = H.data.copy()
+    bad[S.diagonal_positions[5]] = -100.0
+    with pytest.raises(SingularSystemError, match="not positive definite"):
+        factor.factorize(bad)
+    S.add_diagonal(H, 1.0, inplace=True)
+    factor.factorize(H.data)
+    np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
+    del factor
