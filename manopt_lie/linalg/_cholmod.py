@@ -383,31 +383,47 @@ class Cholmod:
         """Analyse a structure's ``H`` in the variables' ``order`` through the variables' graph
         (``d²`` times fewer entries). Returns ``P`` and the triangle of ``B = P H Pᵀ`` to factor.
 
-        The variables' graph is analysed first, in ``order`` and postordered: its final order is
-        the variables' one (the postorder of the variables expands to the coordinates' one).
-        Where every variable has one dimension ``d``, ``B``'s symbolic factor follows from the
-        variables' one (:meth:`_expand`), and CHOLMOD analyses nothing at the scale of coordinates.
-        Otherwise ``B``'s triangle is analysed in the natural order, as it is: CHOLMOD permutes
+        The variables' graph is analysed first, in ``order`` and postordered, which gives the
+        variables' final order (the postorder of the variables expands to the coordinates' one):
+        simplicial by ``patterns.c: block_symbolic`` (0.03 ms on CSAIL against CHOLMOD's 0.10),
+        supernodal, or where ``L`` fills in too much for that, by CHOLMOD. Where every variable has
+        one dimension ``d``, ``B``'s symbolic factor follows from the variables' one
+        (:meth:`_expand`) and nothing is analysed at the scale of coordinates; CHOLMOD's own choice
+        of kind (supernodes where its flops per entry of ``L`` reach 40) is made on ``B``'s exact
+        cost. Otherwise ``B``'s triangle is analysed in the natural order, as it is: CHOLMOD permutes
         nothing and postorders nothing (CSAIL: 0.53 → 0.32 ms, sphere2500: 11 → 6 ms against the
         analysis of ``H`` in the coordinates' order)."""
         dims, block_indptr, block_rows = blocks
         wanted, d = self._settings.supernodal, int(dims.min())
         uniform = int(dims.max()) == d and _patterns._library() is not None
-        block = self._analyze_variables(block_indptr, block_rows, order, wanted == _SUPERNODAL and uniform, d)
-        variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)
-        perm = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
+        block: _Factor | None = None
+        counts: NDArray[np.int64] | None = None
+        found = _patterns.block_symbolic(block_indptr, block_rows, order) if uniform and wanted != _SUPERNODAL else None
+        if found is not None:
+            variables, counts = found
+        else:
+            kind = _SUPERNODAL if uniform and wanted == _SUPERNODAL else _SIMPLICIAL
+            block = self._analyze_variables(block_indptr, block_rows, order, kind, d)
+            variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)
+            if not block.is_super:
+                counts = _array(block.ColCount, np.int32, dims.size).astype(np.int64)
         if uniform:
-            lnz_b, fl_b = self.cost
+            lnz_b, fl_b = self.cost if counts is None else (float(counts.sum()), float(np.dot(counts, counts)))
             nv = dims.size  # Σ_j c_j and Σ_j c_j² over the coordinates, c_j = d·c − a (see _expand)
             lnz = d * d * lnz_b - nv * d * (d - 1) / 2
             fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
-            switch = self._settings.supernodal_switch  # CHOLMOD's own choice: supernodes where fl/lnz ≥ 40
+            switch = self._settings.supernodal_switch
             supernodal = wanted == _SUPERNODAL or (wanted != _SIMPLICIAL and fl >= switch * lnz)
-            if supernodal and not block.is_super:
-                block = self._analyze_variables(block_indptr, block_rows, order, True, d)
-            if self._expand(block, d, supernodal):
+            if supernodal and (block is None or not block.is_super):
+                block = self._analyze_variables(block_indptr, block_rows, order, _SUPERNODAL, d)
+                variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)  # the supernodes' order
+            source = block if supernodal else counts
+            assert source is not None  # a simplicial analysis has its counts
+            if self._expand(d, source):
                 self.cost = (float(lnz), float(fl))
+                perm = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
                 return perm, _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
+        perm = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
         upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
         triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
         self._analyze(*triangle[:2], 1 if upper else -1, natural=True)
@@ -416,14 +432,15 @@ class Cholmod:
         return perm, triangle
 
     def _analyze_variables(self, block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp],
-                           supernodal: bool, d: int) -> _Factor:  # fmt: skip
-        """CHOLMOD's analysis of the variables' graph in ``order``, postordered: simplicial, or
-        supernodal with the amalgamation's bounds (in columns) read in variables of ``d``
+                           kind: int, d: int) -> _Factor:  # fmt: skip
+        """CHOLMOD's analysis of the variables' graph in ``order``, postordered: simplicial, or (``kind``
+        :data:`_SUPERNODAL`) supernodal with the amalgamation's bounds (in columns) read in variables of ``d``
         (rounded down: on parking-garage, sphere2500 and a 10⁴-pose cube the factor stores 0–0.1 %
         more entries than CHOLMOD's analysis of the coordinates makes, against 5–14 % rounded up,
         and factors as fast)."""
         common = self._settings
         wanted, relax = common.supernodal, list(common.nrelax)
+        supernodal = kind == _SUPERNODAL  # else simplicial: only the order and the counts are read
         common.supernodal = _SUPERNODAL if supernodal else _SIMPLICIAL
         if supernodal:  # rounded down: the factor as large as an analysis of the coordinates would make it
             common.nrelax[:] = [columns_ // d for columns_ in relax]
@@ -432,9 +449,10 @@ class Cholmod:
         finally:
             common.supernodal, common.nrelax[:] = wanted, relax
 
-    def _expand(self, block: _Factor, d: int, supernodal: bool) -> bool:
-        """Make the symbolic factor of ``B`` (natural order) from ``block``, the variables' one,
-        every variable of dimension ``d``; ``False`` (nothing changed) where an index passes 32 bits.
+    def _expand(self, d: int, variables_factor: _Factor | NDArray[np.int64]) -> bool:
+        """Make the symbolic factor of ``B`` (natural order) from the variables' one, every variable of
+        dimension ``d``: their supernodal factor (CHOLMOD's), or their simplicial one, its column
+        counts in blocks; ``False`` (nothing changed) where an index passes 32 bits.
 
         The blocks are dense, so the column of coordinate ``a`` of a variable whose column of ``L``
         holds ``c`` blocks holds ``d·c − a`` entries, below the rows of the variable's own ones.
@@ -443,22 +461,23 @@ class Cholmod:
         supernodes expanded to their coordinates (``patterns.c: expand_supernodes``), amalgamated as
         CHOLMOD would (:meth:`_analyze_variables`). The arrays are allocated by CHOLMOD, as its
         analysis would allocate them."""
-        lib, nv, n = self._lib, int(block.n), self._n
+        lib, n, nv = self._lib, self._n, self._n // d
+        supernodal = isinstance(variables_factor, _Factor)
         factor_p = lib.cholmod_allocate_factor(n, self._common)  # natural order, simplicial, no rows
         if not factor_p:
             raise MemoryError("CHOLMOD could not allocate a factor")
         handle = c_void_p(ctypes.cast(factor_p, c_void_p).value)
         factor = factor_p.contents
         try:
-            if supernodal and not self._expand_supernodes(block, factor, d):
+            if isinstance(variables_factor, _Factor) and not self._expand_supernodes(variables_factor, factor, d):
                 lib.cholmod_free_factor(byref(handle), self._common)
                 return False
         except BaseException:
             lib.cholmod_free_factor(byref(handle), self._common)
             raise
-        if not supernodal:
+        if not isinstance(variables_factor, _Factor):
             counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
-            np.subtract(d * _array(block.ColCount, np.int32, nv)[:, None], np.arange(d, dtype=np.int32), out=counts)
+            np.subtract(d * variables_factor[:, None], np.arange(d), out=counts, casting="unsafe")
             factor.is_ll = 0
         factor.ordering = _NATURAL
         lib.cholmod_free_factor(byref(self._handle), self._common)

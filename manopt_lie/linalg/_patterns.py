@@ -25,7 +25,11 @@ from .. import _native
 from . import _factors
 from ._factors import FactorIndex
 
-__all__ = ["hessian_pattern", "permuted_block_triangle"]
+__all__ = ["block_symbolic", "hessian_pattern", "permuted_block_triangle"]
+
+SIMPLICIAL_FILL = 8
+"""The most blocks of ``L`` per stored block of ``H`` :func:`block_symbolic` counts before it leaves
+the variables' analysis to CHOLMOD: a factor that fills in more is a supernodal one's."""
 
 Int32 = NDArray[np.int32]
 I64 = NDArray[np.int64]
@@ -41,6 +45,7 @@ _SIGNATURES = {
     "factor_scatter": (None, [_I, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
+    "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
 }
 
 
@@ -124,3 +129,23 @@ def permuted_block_triangle(
     if status < 0 or out_ptr[-1] != size:
         raise ValueError("permuted_block_triangle: the blocks do not make H's pattern (its indptr)")
     return out_ptr, rows, gather
+
+
+def block_symbolic(
+    block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger], order: NDArray[np.intp]
+) -> tuple[NDArray[np.intp], NDArray[np.int64]] | None:
+    """The variables' simplicial symbolic factorization in ``order`` (``patterns.c:
+    block_symbolic``): their postordered order and the blocks in each column of ``L`` (its diagonal
+    block included), in that order; ``None`` without the library or where ``L`` would hold more
+    than :data:`SIMPLICIAL_FILL` blocks per stored block (CHOLMOD then analyses)."""
+    library = _library()
+    if library is None:
+        return None
+    nv = block_indptr.size - 1
+    indptr, rows, order64 = (np.ascontiguousarray(a, dtype=np.int64) for a in (block_indptr, block_rows, order))
+    variables, counts = np.empty(nv, dtype=np.int64), np.empty(nv, dtype=np.int64)
+    status = library.block_symbolic(nv, _at(indptr), _at(rows), _at(order64), SIMPLICIAL_FILL * rows.size,
+                                    _at(variables), _at(counts))  # fmt: skip
+    if status == -1:
+        raise MemoryError("patterns.c: no memory for the variables' symbolic factorization")
+    return (variables.astype(np.intp), counts) if status == 0 else None

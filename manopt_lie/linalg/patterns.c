@@ -267,3 +267,74 @@ int expand_supernodes(i64 nsuper, const i64* dims, const i32* super_b, const i32
   free(supermap), free(offsets);
   return 0;
 }
+
+/* The variables' simplicial symbolic factorization in a fill-reducing order, for a factor whose
+ * column counts CHOLMOD then expands (Cholmod._expand): the elimination tree of B's block pattern
+ * in `order` (Liu's algorithm with path compression), a postorder of it (children in increasing
+ * order, by an iterative depth-first search), and the count of blocks in each column of L, its
+ * diagonal block included, by the row subtrees (row k of L holds the nodes on the tree paths from
+ * the rows of column k up to k). Writes variables (nv: the postordered order, variables[j] the
+ * j-th) and counts (nv, in that order). The row subtrees take nnz(L) steps: past `budget` the
+ * factor fills in too much for a simplicial one, and the caller asks CHOLMOD instead. Returns 0,
+ * -1 without memory, -2 past the budget. */
+int block_symbolic(i64 nv, const i64* bptr, const i64* brows, const i64* order, i64 budget, i64* variables,
+                   i64* counts) {
+  i64* work = malloc(sizeof(i64) * (size_t)(6 * nv + 1));
+  if (!work) return -1;
+  i64 *rank = work, *parent = work + nv, *ancestor = work + 2 * nv, *mark = work + 3 * nv;
+  i64 *head = work + 4 * nv, *next = work + 5 * nv; /* children lists, then the search's stack */
+  for (i64 k = 0; k < nv; ++k) rank[order[k]] = k;
+  for (i64 k = 0; k < nv; ++k) { /* etree: column k's rows i < k, walked up to their roots */
+    parent[k] = ancestor[k] = -1;
+    i64 v = order[k];
+    for (i64 p = bptr[v]; p < bptr[v + 1]; ++p)
+      for (i64 i = rank[brows[p]]; i != -1 && i < k;) {
+        i64 up = ancestor[i];
+        ancestor[i] = k;
+        if (up == -1) parent[i] = k;
+        i = up;
+      }
+  }
+  i64 steps = 0;
+  for (i64 k = 0; k < nv; ++k) { /* row subtrees: counts in the order before the postorder */
+    mark[k] = k;
+    counts[k] = 0;
+  }
+  for (i64 k = 0; k < nv; ++k) {
+    ++counts[k];
+    i64 v = order[k];
+    for (i64 p = bptr[v]; p < bptr[v + 1]; ++p)
+      for (i64 j = rank[brows[p]]; j != -1 && j < k && mark[j] != k; j = parent[j]) {
+        mark[j] = k;
+        ++counts[j];
+        if (++steps > budget) {
+          free(work);
+          return -2;
+        }
+      }
+  }
+  for (i64 k = 0; k < nv; ++k) head[k] = -1;
+  for (i64 k = nv - 1; k >= 0; --k) /* pushed in decreasing order: each list increasing */
+    if (parent[k] != -1) next[k] = head[parent[k]], head[parent[k]] = k;
+  i64* stack = ancestor; /* done with it */
+  i64 j = 0;
+  for (i64 root = 0; root < nv; ++root) {
+    if (parent[root] != -1) continue;
+    i64 top = 0;
+    stack[0] = root;
+    while (top >= 0) {
+      i64 node = stack[top], child = head[node];
+      if (child == -1) { /* every child done: the node is next */
+        --top;
+        mark[j++] = node;
+      } else {
+        head[node] = next[child];
+        stack[++top] = child;
+      }
+    }
+  }
+  for (i64 q = 0; q < nv; ++q) rank[q] = counts[mark[q]]; /* counts in the postorder (rank reused) */
+  for (i64 q = 0; q < nv; ++q) variables[q] = order[mark[q]], counts[q] = rank[q];
+  free(work);
+  return 0;
+}

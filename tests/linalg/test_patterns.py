@@ -207,3 +207,64 @@ def test_a_factor_made_from_the_variables_refuses_an_indefinite_h_and_recovers(r
     factor.factorize(H.data)
     np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
     del factor
+
+
+def _is_postorder(parent: np.ndarray) -> bool:
+    """Whether the forest ``parent`` (−1 at roots) is numbered in a postorder: the descendants of
+    every node ``j`` are the nodes just before it, ``j − s + 1 … j − 1`` for a subtree of ``s``."""
+    n = parent.size
+    descendants: list[set[int]] = [set() for _ in range(n)]
+    for i in range(n):
+        j = parent[i]
+        while j != -1:
+            if j <= i:
+                return False
+            descendants[j].add(i)
+            j = parent[j]
+    return all(descendants[j] == set(range(j - len(descendants[j]), j)) for j in range(n))
+
+
+@compiled
+@pytest.mark.parametrize("seed", range(4))
+def test_the_variables_symbolic_factorization_is_the_elimination_by_hand(seed):
+    """``block_symbolic``: a postorder of the elimination tree of the variables' graph in the given
+    order, and the blocks of each column of ``L``, as eliminating a dense boolean matrix finds them."""
+    rng = np.random.default_rng(seed)
+    dims, factors = random_factor_graph(rng, n_vars=int(rng.integers(20, 80)))
+    S = BlockStructure(dims, factors)
+    indptr, rows = S.block_pattern
+    order = S.variable_ordering()
+    found = _patterns.block_symbolic(indptr, rows, order)
+    assert found is not None
+    variables, counts = found
+    assert sorted(variables) == list(range(dims.size))
+    nv = dims.size
+    a = np.zeros((nv, nv), dtype=bool)
+    a[rows, np.repeat(np.arange(nv), np.diff(indptr))] = True
+    a = a[np.ix_(variables, variables)]
+    parent = np.full(nv, -1)
+    for k in range(nv):
+        below = k + 1 + np.flatnonzero(a[k + 1 :, k])
+        assert counts[k] == below.size + 1
+        if below.size:
+            parent[k] = below[0]
+        a[np.ix_(below, below)] = True
+    assert _is_postorder(parent)
+
+
+@direct
+@compiled
+def test_a_factor_filling_in_past_the_budget_is_analysed_by_cholmod(monkeypatch, rng):
+    """Past ``SIMPLICIAL_FILL`` blocks of ``L`` per block of ``H`` the variables' analysis is
+    CHOLMOD's: the same factor."""
+    S, blocks, residuals = pose_graph(rng, n_poses=120, d=3)
+    H, g = S.normal_equations(blocks, residuals)
+    S.add_diagonal(H, 1.0, inplace=True)
+    ours = _factor(S, False)
+    monkeypatch.setattr(_patterns, "SIMPLICIAL_FILL", 0)
+    assert _patterns.block_symbolic(*S.block_pattern, S.variable_ordering()) is None
+    theirs = _factor(S, False)
+    assert ours.cost == theirs.cost
+    for factor in (ours, theirs):
+        factor.factorize(H.data)
+        np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
