@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._native import address
-from ._cholmod import loaded_library
+from ._cholmod_types import loaded_library
 
 __all__ = ["amd_order"]
 

@@ -1,13 +1,16 @@
-"""The index arrays of a :class:`~manopt_lie.linalg.BlockStructure` and the triangle CHOLMOD
-factors, built in compiled code (``patterns.c``).
+"""A solve's set-up in compiled code (``patterns.c``): the index arrays of a
+:class:`~manopt_lie.linalg.BlockStructure`, the triangle CHOLMOD factors, and the variables'
+symbolic factorization (``linalg._cholmod`` expands the latter, and CHOLMOD's supernodes of the
+variables, to the coordinates).
 
-Both are a solve's set-up, paid once per pattern: NumPy builds them in a few dozen calls over
-every entry (CSAIL: the structure 0.83 ms, the triangle 0.40 ms), the C in a few passes over
-the blocks. The arrays are the same, entry for entry (``tests/linalg/test_patterns.py``). Each
-function returns ``None`` where the C cannot serve — no compiler (``_native.enabled``), an index
-of ``H`` past 32 bits, a factor's scatter too large to keep whole
-(:data:`~manopt_lie.linalg._factors.WHOLE_SCATTER_BYTES`, made per chunk instead) — and the
-callers then build with NumPy.
+All of it is paid once per pattern: NumPy built the structure and the triangle in a few dozen
+calls over every entry (CSAIL: 0.83 and 0.40 ms), the C takes a few passes over the blocks
+(0.17 and 0.04 ms). The arrays are NumPy's, entry for entry (``tests/linalg/test_patterns.py``).
+Each function returns ``None`` where the C cannot serve — no compiler (``_native.enabled``), an
+index of ``H`` past 32 bits, a factor's scatter too large to keep whole
+(:data:`~manopt_lie.linalg._factors.WHOLE_SCATTER_BYTES`, made per chunk instead), a factor that
+fills in too much for the variables' simplicial analysis — and the callers keep their other
+builds (NumPy's, CHOLMOD's).
 """
 
 from __future__ import annotations
@@ -32,7 +35,6 @@ SIMPLICIAL_FILL = 8
 the variables' analysis to CHOLMOD: a factor that fills in more is a supernodal one's."""
 
 Int32 = NDArray[np.int32]
-I64 = NDArray[np.int64]
 INT32_MAX = np.iinfo(np.int32).max
 Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int32]]]
 

@@ -1,11 +1,14 @@
-/* The index arrays of a block structure and of the triangle CHOLMOD factors, in one pass each.
+/* A solve's set-up at the scale of the variables: the index arrays of a block structure, the
+ * triangle CHOLMOD factors, and the symbolic factorization of the variables' graph.
  *
- * What manopt_lie/linalg/structure.py (BlockStructure._build_hessian_pattern, _build_factor,
- * HessianScatter) and _triangles.py (permuted_block_triangle) build with NumPy, for a problem's
- * set-up: the same arrays, entry for entry (tests/linalg/test_patterns.py), in a few passes over
- * the blocks instead of a few dozen NumPy calls over the entries. The caller
- * (manopt_lie/linalg/_patterns.py) sizes every output and uses these only where every index of
- * H fits in 32 bits.
+ * block_pattern, layout, expand_pattern and factor_scatter build what
+ * manopt_lie/linalg/structure.py (BlockStructure._build_hessian_pattern, _build_factor,
+ * HessianScatter) builds with NumPy, and permuted_triangle what _triangles.py's
+ * permuted_block_triangle builds: the same arrays, entry for entry (tests/linalg/test_patterns.py),
+ * in a few passes over the blocks instead of a few dozen NumPy calls over the entries.
+ * block_symbolic and expand_supernodes make B's symbolic factor from the variables' (_cholmod.py,
+ * Cholmod._analyze_blocks). The caller (manopt_lie/linalg/_patterns.py) sizes every output and
+ * uses these only where every index of H fits in 32 bits.
  *
  * Notation (structure.py's): variable v has dimension d_v and owns coordinates o_v ... o_v + d_v - 1;
  * block k = (w, v) holds the rows of w in the columns of v; each column of v has length L_v (the
