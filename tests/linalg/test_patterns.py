@@ -268,3 +268,29 @@ def test_a_factor_filling_in_past_the_budget_is_analysed_by_cholmod(monkeypatch,
     for factor in (ours, theirs):
         factor.factorize(H.data)
         np.testing.assert_allclose(factor.solve(g), np.linalg.solve(H.toarray(), g), rtol=1e-8, atol=1e-12)
+
+
+@pytest.mark.parametrize("side", [8, 4], ids=["SE(2) grid, simplicial", "SE(3) cube, supernodal"])
+def test_a_solve_without_compiled_set_up_gives_the_same_result(monkeypatch, side):
+    """LM on a synthetic pose graph past the compiled loop's sizes, set up in compiled code and
+    without it (NumPy's structure, CHOLMOD's analyses): the same iterations, cost and point."""
+    from manopt_lie.linalg import clear_caches
+    from manopt_lie.optim import LevenbergMarquardt
+    from manopt_lie.problems import synthetic
+
+    class PythonLoop(LevenbergMarquardt):  # a subclass runs the Python loop at any size
+        pass
+
+    made = synthetic.grid2d(side * 4, side * 4, seed=1) if side == 8 else synthetic.cube(side, seed=1)
+    x0 = made.graph.chordal_initialization()
+    runs = []
+    for library in (_patterns._library, lambda: None):
+        monkeypatch.setattr(_patterns, "_library", library)
+        clear_caches()
+        problem = made.graph.problem("geodesic")
+        runs.append(PythonLoop(rel_cost_decrease=1e-5).solve(problem, x0))
+    monkeypatch.undo()
+    clear_caches()
+    (a, b), group = runs, made.graph.group
+    assert a.nit == b.nit and a.fun == pytest.approx(b.fun, rel=1e-12)
+    np.testing.assert_allclose(group.as_matrix(a.x), group.as_matrix(b.x), atol=1e-9)
