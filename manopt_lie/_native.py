@@ -27,14 +27,15 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "load"]
+__all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "load", "load_source"]
 
 FloatArray = NDArray[np.float64]
 FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -206,6 +207,19 @@ def load(source: str) -> Any:
                 except (OSError, subprocess.CalledProcessError):
                     continue
         return _LIBRARIES[key]
+
+
+def load_source(package: str, name: str, signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> Any:
+    """The C file ``name`` of ``package`` compiled and loaded (:func:`load`), its functions given
+    these prototypes ``{function: (restype, argtypes)}``; ``None`` where native code is not
+    :func:`enabled` or cannot be built."""
+    if not enabled():
+        return None
+    library = load(resources.files(package).joinpath(name).read_text())
+    if library is not None:
+        for function, (restype, argtypes) in signatures.items():
+            getattr(library, function).restype, getattr(library, function).argtypes = restype, argtypes
+    return library
 
 
 def compile_functions(functions: Sequence[Any]) -> dict[str, Native] | None:

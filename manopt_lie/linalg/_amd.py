@@ -10,7 +10,6 @@ be found, :func:`amd_order` returns ``None`` and the caller keeps CVXOPT's inter
 
 from __future__ import annotations
 
-import ctypes
 import functools
 from ctypes import c_int, c_void_p
 from typing import Any
@@ -19,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._native import address
-from ._cholmod_types import loaded_library
+from ._cholmod_types import cvxopt_library
 
 __all__ = ["amd_order"]
 
@@ -33,14 +32,8 @@ def _library() -> Any | None:
         from cvxopt import amd, spmatrix  # loads the library this binding calls
     except ImportError:
         return None
-    path = loaded_library("amd")
-    try:
-        lib = ctypes.CDLL(path) if path else None
-        if lib is None:
-            return None
-        lib.amd_order.restype = c_int
-        lib.amd_order.argtypes = [c_int, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p]
-    except (OSError, AttributeError):
+    lib = cvxopt_library("amd", {"amd_order": (c_int, [c_int, c_void_p, c_void_p, c_void_p, c_void_p, c_void_p])})
+    if lib is None:
         return None
     # A wheel of 7 with a chord: CVXOPT's order of its lower triangle, and ours of both triangles.
     edges = [(k, (k + 1) % 7) for k in range(7)] + [(0, 3), (2, 5)]

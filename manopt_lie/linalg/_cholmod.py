@@ -71,7 +71,7 @@ from ._cholmod_types import (
     _Dense,
     _Factor,
     _Sparse,
-    loaded_library,
+    cvxopt_library,
 )
 from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
@@ -91,15 +91,8 @@ def _library() -> Any | None:
         import cvxopt.cholmod  # noqa: F401  (loads the library this binding calls)
     except ImportError:
         return None
-    path = loaded_library("cholmod")
-    try:
-        lib = ctypes.CDLL(path) if path else None
-        if lib is None:
-            return None
-        for name, (restype, argtypes) in _SIGNATURES.items():
-            function = getattr(lib, name)
-            function.restype, function.argtypes = restype, argtypes
-    except (OSError, AttributeError):
+    lib = cvxopt_library("cholmod", _SIGNATURES)
+    if lib is None:
         return None
     return lib if _works(lib) else None
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+from collections.abc import Mapping, Sequence
 from ctypes import POINTER, c_double, c_int, c_size_t, c_void_p
 from typing import Any
 
@@ -77,7 +78,7 @@ class _Factor(ctypes.Structure):
                 ("xtype", c_int), ("dtype", c_int)]  # fmt: skip
 
 
-_SIGNATURES = {
+_SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "cholmod_version": (c_int, [c_void_p]),
     "cholmod_start": (c_int, [c_void_p]),
     "cholmod_finish": (c_int, [c_void_p]),
@@ -115,3 +116,18 @@ def loaded_library(name: str) -> str | None:
     except OSError:
         pass
     return ctypes.util.find_library(name)
+
+
+def cvxopt_library(name: str, signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> Any | None:
+    """The library ``name`` CVXOPT loaded (see :func:`loaded_library`), its functions given these
+    prototypes ``{function: (restype, argtypes)}``; ``None`` where it or one of them is missing."""
+    path = loaded_library(name)
+    try:
+        lib = ctypes.CDLL(path) if path else None
+        if lib is None:
+            return None
+        for function, (restype, argtypes) in signatures.items():
+            getattr(lib, function).restype, getattr(lib, function).argtypes = restype, argtypes
+    except (OSError, AttributeError):
+        return None
+    return lib

@@ -18,7 +18,6 @@ from __future__ import annotations
 import ctypes
 import functools
 from collections.abc import Sequence
-from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -40,7 +39,7 @@ Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int3
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
-_SIGNATURES = {
+_SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "block_pattern": (_I, [_I, _I, _P, _P, _P, _P, _P, _P]),
     "layout": (_I, [_I, _P, _P, _P, _P, _P, _P]),
     "expand_pattern": (None, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
@@ -54,14 +53,7 @@ _SIGNATURES = {
 @functools.cache
 def _library() -> Any:
     """``patterns.c`` compiled (once per machine, like the kernels), or ``None``."""
-    if not _native.enabled():
-        return None
-    library = _native.load(resources.files(__package__).joinpath("patterns.c").read_text())
-    if library is not None:
-        for name, (restype, argtypes) in _SIGNATURES.items():
-            function = getattr(library, name)
-            function.restype, function.argtypes = restype, argtypes
-    return library
+    return _native.load_source(__package__, "patterns.c", _SIGNATURES)
 
 
 _at = _native.address

@@ -26,7 +26,6 @@ from __future__ import annotations
 import ctypes
 import functools
 import math
-from importlib import resources
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -120,13 +119,8 @@ def _lapack() -> list[int]:
 @functools.cache
 def _library() -> Any:
     """``small_system.c`` compiled (once per machine, like the kernels), or ``None``."""
-    if not _native.enabled():
-        return None
-    library = _native.load(resources.files(__package__).joinpath("small_system.c").read_text())
-    if library is not None:
-        library.small_system.restype = ctypes.c_int
-        library.small_system.argtypes = [ctypes.POINTER(_Problem)]
-    return library
+    prototypes = {"small_system": (ctypes.c_int, [ctypes.POINTER(_Problem)])}
+    return _native.load_source(__package__, "small_system.c", prototypes)
 
 
 def _settings(optimizer: Any, method: int) -> tuple[int, float, float, float, float, float] | None:
