@@ -49,9 +49,9 @@ def test_the_compiled_structure_is_numpys(monkeypatch, seed):
         assert a.dtype == b.dtype
         np.testing.assert_array_equal(a, b)
     blocks, residuals, weights = random_values(rng, dims, factors)
-    for (H1, g1), (H2, g2) in [(s.normal_equations(blocks, residuals, weights) for s in (made, reference))]:
-        np.testing.assert_array_equal(H1.data, H2.data)
-        np.testing.assert_array_equal(g1, g2)
+    (H1, g1), (H2, g2) = (s.normal_equations(blocks, residuals, weights) for s in (made, reference))
+    np.testing.assert_array_equal(H1.data, H2.data)
+    np.testing.assert_array_equal(g1, g2)
 
 
 @compiled
