@@ -64,6 +64,10 @@ class BlockStructure:
     dense : bool
         Store every entry of ``H`` (``n²``: for small systems, see
         :data:`~manopt_lie.linalg.DENSE_MAX`) instead of the touched blocks.
+    inputs_digest : bytes, optional
+        A digest of these arguments (e.g. the structure pool's
+        :func:`~manopt_lie.linalg._analyses.structure_key`), which determine the pattern: the
+        :meth:`pattern_digest` then, instead of a digest of the block pattern.
 
     Raises
     ------
@@ -93,7 +97,10 @@ class BlockStructure:
     dense matrix itself, column after column (``H.data.reshape(n, n)``, symmetric).
     """
 
-    def __init__(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False) -> None:
+    def __init__(
+        self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False,
+        inputs_digest: bytes | None = None,
+    ) -> None:  # fmt: skip
         d = np.asarray(dims)
         if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (d < 1).any():
             raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
@@ -106,7 +113,7 @@ class BlockStructure:
         self._n = int(self.offsets[-1])
         self._ordering: IntArray | None = None  # computed at first use
         self._variable_order: IntArray | None = None
-        self._digest: bytes | None = None
+        self._digest = None if inputs_digest is None else inputs_digest + b"inputs"
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [
@@ -352,8 +359,10 @@ class BlockStructure:
         return self._ordering
 
     def pattern_digest(self) -> bytes:
-        """A digest of ``H``'s pattern through what determines it, the variables' dimensions and
-        block pattern (``d²`` times fewer bytes than its coordinates): the key under which
+        """A digest of ``H``'s pattern through what determines it: the structure's inputs where they
+        were digested already (``inputs_digest``: a problem's structure, 0.03–0.06 ms saved on
+        CSAIL and intel), else the variables' dimensions and block pattern (``d²`` times fewer
+        bytes than its coordinates). The key under which
         :data:`~manopt_lie.linalg._analyses.ANALYSES` pools its analysis. Computed once."""
         if self._digest is None:
             self._digest = digest(self.dims, *self._block_pattern) + b"blocks"

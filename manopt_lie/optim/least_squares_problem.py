@@ -531,9 +531,8 @@ class LeastSquaresProblem(Problem):
                 dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
                 dense = int(dims.sum()) <= DENSE_MAX
                 # Another problem of the same graph (a repeated solve, other measurements) built it already.
-                structure = STRUCTURES.get(
-                    structure_key(dims, shapes, dense), lambda: BlockStructure(dims, shapes, dense=dense)
-                )
+                key = structure_key(dims, shapes, dense)
+                structure = STRUCTURES.get(key, lambda: BlockStructure(dims, shapes, dense=dense, inputs_digest=key))
                 self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
                 self._structure = structure
             return self._structure

@@ -88,6 +88,16 @@ def test_digests_tell_patterns_apart():
     assert base.pattern_digest() is base.pattern_digest()  # computed once
 
 
+def test_a_digest_of_the_inputs_serves_as_the_patterns():
+    """Given the digest of its inputs (a problem's structure key), a structure's pattern digest is
+    that digest: equal for equal inputs, apart from the block-pattern digest of the same pattern."""
+    chain = np.array([[0, 1], [1, 2]])
+    key = structure_key(np.array([3, 3, 3]), [(chain, 3)], False)
+    a, b = (BlockStructure([3, 3, 3], [(chain, 3)], inputs_digest=key) for _ in range(2))
+    assert a.pattern_digest() == b.pattern_digest() != BlockStructure([3, 3, 3], [(chain, 3)]).pattern_digest()
+    assert a.pattern_digest().startswith(key)
+
+
 def test_keys_of_a_copied_pattern_hash_its_coordinates(rng):
     """A matrix that is not the structure's own (copied arrays) is keyed by its coordinates, so
     equal patterns share a key whoever built them, and the block digest never collides with one."""
