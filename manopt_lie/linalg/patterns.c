@@ -38,57 +38,65 @@ static void sort(i64* a, i64 n) {
   }
 }
 
-/* The position of `row` in the sorted rows[lo:hi] (present by construction). */
-static i64 find(const i64* rows, i64 lo, i64 hi, i64 row) {
-  while (hi - lo > 8) {
-    i64 mid = lo + (hi - lo) / 2;
-    if (rows[mid] <= row) lo = mid; else hi = mid;
-  }
-  while (rows[lo] != row) ++lo;
-  return lo;
-}
-
 /* The variables' graph: block k of column v for every pair of slots (s, t) of every edge (rows of
  * slot s in the columns of slot t) and every diagonal block, sorted and without repeats, as block
  * CSC (bptr: nv + 1, brows: room for nv + sum_f m_f a_f^2, filled with the nb blocks first); and
- * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t). Returns nb, -1 without memory. */
+ * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t). Each column's candidates are
+ * gathered with where their block goes; the distinct rows are told apart by a mark per row and
+ * only they are sorted. Returns nb, -1 without memory. */
 i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i64* bptr,
                   i64* brows, i64* const* blocks) {
-  i64* fill = calloc((size_t)nv + 1, sizeof(i64));
-  if (!fill) return -1;
-  for (i64 v = 0; v < nv; ++v) fill[v + 1] = 1; /* the diagonal block */
+  i64 candidates = nv;
+  for (i64 f = 0; f < n_factors; ++f) candidates += m[f] * arity[f] * arity[f];
+  i64* fill = calloc((size_t)(3 * nv + 1), sizeof(i64));
+  i64** dest = malloc(sizeof(i64*) * (size_t)candidates); /* where each candidate's block index goes */
+  if (!fill || !dest) {
+    free(fill), free(dest);
+    return -1;
+  }
+  i64 *mark = fill + nv + 1, *where = mark + nv; /* per row: the column that saw it last, its block */
+  for (i64 v = 0; v < nv; ++v) fill[v + 1] = 1, mark[v] = -1; /* the diagonal block */
   for (i64 f = 0; f < n_factors; ++f)
     for (i64 e = 0; e < m[f]; ++e)
       for (i64 t = 0; t < arity[f]; ++t) fill[ids[f][e * arity[f] + t] + 1] += arity[f];
-  for (i64 v = 0; v < nv; ++v) fill[v + 1] += fill[v];
-  for (i64 v = 0; v < nv; ++v) brows[fill[v]++] = v;
-  for (i64 f = 0; f < n_factors; ++f)
-    for (i64 e = 0; e < m[f]; ++e) {
-      const i64* edge = ids[f] + e * arity[f];
-      for (i64 t = 0; t < arity[f]; ++t)
-        for (i64 s = 0; s < arity[f]; ++s) brows[fill[edge[t]]++] = edge[s];
-    }
+  i64 longest = 0;
+  for (i64 v = 0; v < nv; ++v) {
+    if (fill[v + 1] > longest) longest = fill[v + 1];
+    fill[v + 1] += fill[v];
+  }
+  for (i64 v = 0; v < nv; ++v) dest[fill[v]] = NULL, brows[fill[v]++] = v;
+  for (i64 f = 0; f < n_factors; ++f) {
+    const i64 a = arity[f], mf = m[f];
+    const i64* edges = ids[f];
+    for (i64 e = 0; e < mf; ++e)
+      for (i64 t = 0; t < a; ++t) {
+        i64 v = edges[e * a + t];
+        for (i64 s = 0; s < a; ++s) dest[fill[v]] = blocks[f] + (t * mf + e) * a + s, brows[fill[v]++] = edges[e * a + s];
+      }
+  }
+  i64* distinct = malloc(sizeof(i64) * (size_t)(longest > 0 ? longest : 1));
+  if (!distinct) {
+    free(fill), free(dest);
+    return -1;
+  }
   /* fill[v] is now the end of column v's candidates, fill[v - 1] (0 for v = 0) their start. */
   i64 nb = 0, start = 0;
   for (i64 v = 0; v < nv; ++v) {
-    i64 end = fill[v];
-    sort(brows + start, end - start);
+    i64 end = fill[v], count = 0;
+    for (i64 i = start; i < end; ++i)
+      if (mark[brows[i]] != v) mark[brows[i]] = v, distinct[count++] = brows[i];
+    sort(distinct, count);
+    for (i64 k = 0; k < count; ++k) where[distinct[k]] = nb + k;
+    for (i64 i = start; i < end; ++i)
+      if (dest[i]) *dest[i] = where[brows[i]];
     bptr[v] = nb;
-    for (i64 i = start, last = -1; i < end; ++i) /* nb <= i: written behind what is read */
-      if (brows[i] != last) last = brows[nb++] = brows[i];
+    for (i64 k = 0; k < count; ++k) brows[nb++] = distinct[k]; /* behind what is left to read: nb <= start */
     start = end;
   }
   bptr[nv] = nb;
+  free(distinct);
+  free(dest);
   free(fill);
-  for (i64 f = 0; f < n_factors; ++f) {
-    i64 a = arity[f];
-    for (i64 t = 0; t < a; ++t)
-      for (i64 e = 0; e < m[f]; ++e) {
-        const i64* edge = ids[f] + e * a;
-        i64 v = edge[t];
-        for (i64 s = 0; s < a; ++s) blocks[f][(t * m[f] + e) * a + s] = find(brows, bptr[v], bptr[v + 1], edge[s]);
-      }
-  }
   return nb;
 }
 
