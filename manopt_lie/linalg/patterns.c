@@ -2,8 +2,8 @@
  * triangle CHOLMOD factors, and the symbolic factorization of the variables' graph.
  *
  * block_pattern, layout, expand_pattern and factor_scatter build what
- * manopt_lie/linalg/structure.py (BlockStructure._build_hessian_pattern, _build_factor,
- * HessianScatter) builds with NumPy, and permuted_triangle what _triangles.py's
+ * manopt_lie/linalg/_patterns_numpy.py (sparse_pattern, factor_scatter, and HessianScatter's
+ * positions) builds with NumPy, and permuted_triangle what _triangles.py's
  * permuted_block_triangle builds: the same arrays, entry for entry (tests/linalg/test_patterns.py),
  * in a few passes over the blocks instead of a few dozen NumPy calls over the entries.
  * block_symbolic and expand_supernodes make B's symbolic factor from the variables' (_cholmod.py,

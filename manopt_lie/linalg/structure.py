@@ -14,7 +14,8 @@ concatenated in slot order, is the block ``A_e`` of shape ``(r_k, D_k)`` with
 
 and a Gauss-Newton step solves ``H δ = −g``. The pattern never changes while
 a solve runs, so every index array is computed once here and each call only
-refills data arrays.
+refills data arrays. The index arrays are built in compiled code (``_patterns``) or,
+where it cannot serve, with NumPy (``_patterns_numpy``): the same arrays.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from ._amd import amd_order
 from ._analyses import digest
 from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import hessian_pattern
+from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
 
 __all__ = ["BlockStructure"]
 
@@ -40,8 +42,6 @@ FloatArray = NDArray[np.float64]
 
 # (indptr, indices, per-factor gathers into the blocks, per-factor start in J.data)
 _JacobianPattern = tuple[NDArray[np.signedinteger], NDArray[np.signedinteger], list[IntArray], IntArray]
-# (L, base, within): the length of each variable's columns, where they start, each block's offset in them
-_Layout = tuple[IntArray, IntArray, IntArray]
 
 CHUNK = 1 << 17
 """Products per chunk of :meth:`BlockStructure.normal_equations` (1 MiB of float64): as fast as
@@ -120,16 +120,19 @@ class BlockStructure:
             FactorIndex(ids, int(r), slot_dims) for (ids, slot_dims), (_, r) in zip(checked, factors, strict=True)
         ]
         if dense:
-            self._build_full_pattern()
-            self._hess_scatter, self._grad_scatter = self._dense_scatters()
+            self._block_pattern, self._indptr, self._indices, self._diag_pos = dense_pattern(self.dims.size, self._n)
+            self._hess_scatter, self._grad_scatter = dense_scatters(self._factors, self.offsets, self._n)
         elif (built := hessian_pattern(self.dims, self.offsets, self._factors)) is not None:
             self._block_pattern, self._indptr, self._indices, self._diag_pos, made = built  # compiled
             pairs = zip(made, self._factors, strict=True)
             self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
             self._grad_scatter = [g for _, g in made]
-        else:
-            block_ids, layout = self._build_hessian_pattern([f.var_ids for f in self._factors])
-            scatters = [self._build_factor(f, b, layout) for f, b in zip(self._factors, block_ids, strict=True)]
+        else:  # NumPy's build: no compiler, 64-bit indices, or scatters made per chunk
+            pattern, block_ids, layout = sparse_pattern(self.dims, self.offsets, [f.var_ids for f in self._factors])
+            self._block_pattern, self._indptr, self._indices, self._diag_pos = pattern
+            itype = index_dtype(max(self._indices.size, self._n))
+            scatters = [factor_scatter(f, b, layout, self.offsets, itype)
+                        for f, b in zip(self._factors, block_ids, strict=True)]  # fmt: skip
             self._hess_scatter = [h for h, _ in scatters]
             self._grad_scatter = [g for _, g in scatters]
         self._diag_pos.flags.writeable = False
@@ -169,100 +172,6 @@ class BlockStructure:
 
     # -- symbolic analysis -------------------------------------------------
 
-    def _build_hessian_pattern(self, all_ids: list[IntArray]) -> tuple[list[IntArray], _Layout]:
-        """Block-CSC pattern of ``H`` and its scalar CSC expansion.
-
-        Returns, per factor, the block index of every slot pair as an array
-        ``(arity, m, arity)`` indexed ``[t, e, s]`` (rows of slot ``s``,
-        columns of slot ``t``), and the layout ``(L, base, within)`` below, which only the
-        factors' scatters read (not kept: a 10⁵-pose planar graph's is 4 MB).
-
-        Block ``k = (a, b)`` (rows of variable ``a`` in the columns of ``b``)
-        puts entry ``(o_a + i, o_b + j)`` at ``base[b] + j·L[b] + within[k] + i``
-        of ``H.data``, where ``L[b]`` is the length of each column of ``b``,
-        ``base[b]`` the start of ``b``'s columns and ``within[k]`` the offset
-        of block ``k`` inside them.
-        """
-        nv, dims = self.dims.size, self.dims
-        keys = [np.arange(nv, dtype=np.int64) * (nv + 1)]
-        keys += [(ids[:, t, None] * nv + ids).ravel() for ids in all_ids for t in range(ids.shape[1])]
-        all_keys = np.concatenate(keys)
-        ukeys, inverse = np.unique(all_keys, return_inverse=True)
-        bcol, brow = np.divmod(ukeys, nv)
-        col_len = np.bincount(bcol, weights=dims[brow], minlength=nv).astype(np.intp)
-        base = exclusive_cumsum(col_len * dims)
-        stream_start = exclusive_cumsum(col_len)
-        within = exclusive_cumsum(dims[brow])[:-1] - stream_start[bcol]
-
-        n, nnz = self._n, int(base[-1])
-        itype = index_dtype(max(nnz, n))
-        # The variables' graph (block CSC, both triangles): what a fill-reducing ordering reads.
-        self._block_pattern = (exclusive_cumsum(np.bincount(bcol, minlength=nv)).astype(itype), brow.astype(itype))
-        var_of_col = np.repeat(np.arange(nv), dims)
-        j_local = np.arange(n) - self.offsets[var_of_col]
-        indptr = np.append(base[var_of_col] + j_local * col_len[var_of_col], nnz)
-        # Each column of variable b lists the rows of b's blocks in order: the
-        # "row stream" segment of b, repeated d_b times. The nnz-sized arrays are built in
-        # the index dtype, one at a time (their memory is the structure's peak).
-        row_stream = coordinates(self.offsets, dims, brow)
-        per_col = col_len[var_of_col]
-        gather = np.repeat((stream_start[var_of_col] - indptr[:-1]).astype(itype), per_col)
-        gather += np.arange(nnz, dtype=itype)
-        indices = np.take(row_stream.astype(itype), gather)  # take: twice as fast as [] with an int32 index
-        del gather
-        self._indptr = indptr.astype(itype)
-        self._indices = indices
-        self._diag_pos = (indptr[:-1] + within[inverse[:nv]][var_of_col] + j_local).astype(itype)
-        parts = np.split(inverse[nv:], np.cumsum([ids.size * ids.shape[1] for ids in all_ids])[:-1])
-        blocks = [p.reshape(ids.shape[1], *ids.shape) for p, ids in zip(parts, all_ids, strict=True)]
-        return blocks, (col_len, base, within)
-
-    def _build_full_pattern(self) -> None:
-        """:meth:`_build_hessian_pattern` for a ``dense`` structure: every entry stored, ``(i, j)``
-        at ``j·n + i`` of ``H.data``; the variables' graph complete. For small systems, where the
-        bookkeeping of a sparse pattern costs more than the entries it leaves out
-        (:data:`~manopt_lie.linalg.DENSE_MAX`)."""
-        nv, n = self.dims.size, self._n
-        itype = index_dtype(n * n)
-        self._block_pattern = (np.arange(0, nv * nv + 1, nv, dtype=itype), np.tile(np.arange(nv, dtype=itype), nv))
-        self._indptr = np.arange(0, n * n + 1, n, dtype=itype)
-        self._indices = np.tile(np.arange(n, dtype=itype), n)
-        self._diag_pos = np.arange(0, n * n, n + 1, dtype=itype)
-
-    def _dense_scatters(self) -> tuple[list[HessianScatter], list[NDArray[np.signedinteger]]]:
-        """A dense structure's H and g scatters: entry ``[p, q]`` of ``A_eᵀA_e`` at ``c_p·n + c_q``,
-        ``c`` the coordinates of ``A_e``'s columns."""
-        itype = index_dtype(self._n * self._n)
-        columns = [self._coordinates(f).astype(itype) for f in self._factors]
-        hessian = [HessianScatter.of_positions((c[:, :, None] * itype(self._n) + c[:, None, :]).reshape(-1), c.shape[1])
-                   for c in columns]  # fmt: skip
-        return hessian, [c.reshape(-1) for c in columns]
-
-    def _coordinates(self, f: FactorIndex) -> IntArray:
-        """``(m, width)``: the coordinate of every column of each edge's block ``A_e``."""
-        slots = [self.offsets[f.var_ids[:, s], None] + np.arange(ds) for s, ds in enumerate(f.slot_dims)]
-        return np.concatenate(slots, 1)
-
-    def _build_factor(
-        self, f: FactorIndex, block: IntArray, layout: _Layout
-    ) -> tuple[HessianScatter, NDArray[np.signedinteger]]:
-        """Index arrays of one factor type: its H and g scatters."""
-        ids, slot_dims = f.var_ids, f.slot_dims
-        itype = index_dtype(max(self.nnz, self._n))
-        colmap = self._coordinates(f)
-        # A_eᵀA_e is symmetric, so its entry [p, q] may go to H[q, p]: consecutive
-        # q then land on consecutive rows of one CSC column, which makes the
-        # scatter far more cache-friendly than walking along a row.
-        col_len, base, within = (a.astype(itype) for a in layout)
-        local = np.concatenate([np.arange(ds, dtype=itype) for ds in slot_dims])  # i within each slot
-        # Row j of slot t (variable b) goes to column o_b + j, which starts at base[b] + j·L[b];
-        # its entry q (slot s, row i of that slot's block) then sits at within[block[t, e, s]] + i.
-        rows = [col_len[ids[:, t], None] * np.arange(dt, dtype=itype) + base[ids[:, t], None]
-                for t, dt in enumerate(slot_dims)]  # fmt: skip
-        row_start = np.concatenate(rows, axis=1)  # (m, width)
-        offset = np.stack([np.repeat(within[block[t]], slot_dims, axis=1) + local for t in range(len(slot_dims))])
-        return HessianScatter(row_start, offset, slot_dims), colmap.astype(itype).reshape(-1)
-
     def _jacobian_pattern(self) -> _JacobianPattern:
         """CSR pattern of ``J`` — every row of edge ``e`` holds ``e``'s columns, sorted — and
         the gather of each factor's blocks into its data; built at the first :meth:`jacobian`."""
@@ -271,7 +180,7 @@ class BlockStructure:
         cols, gathers = [], []
         for f in self._factors:
             m, r, width = f.m, f.residual_dim, f.width
-            colmap = self._coordinates(f)
+            colmap = edge_coordinates(self.offsets, f)
             order = np.argsort(colmap, axis=1, kind="stable")
             jac = (np.arange(m) * (r * width))[:, None, None] + (np.arange(r) * width)[:, None] + order[:, None, :]
             gathers.append(jac.ravel())
