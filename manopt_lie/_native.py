@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "load", "load_source"]
+__all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "declare", "load", "load_source"]
 
 FloatArray = NDArray[np.float64]
 FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
@@ -217,9 +217,15 @@ def load_source(package: str, name: str, signatures: Mapping[str, tuple[Any, Seq
         return None
     library = load(resources.files(package).joinpath(name).read_text())
     if library is not None:
-        for function, (restype, argtypes) in signatures.items():
-            getattr(library, function).restype, getattr(library, function).argtypes = restype, argtypes
+        declare(library, signatures)
     return library
+
+
+def declare(library: Any, signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> None:
+    """Give ``library``'s functions these prototypes ``{function: (restype, argtypes)}`` (an
+    ``AttributeError`` where one is missing)."""
+    for function, (restype, argtypes) in signatures.items():
+        getattr(library, function).restype, getattr(library, function).argtypes = restype, argtypes
 
 
 def compile_functions(functions: Sequence[Any]) -> dict[str, Native] | None:

@@ -153,22 +153,14 @@ def cholmod_backend(
     supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
     variables: NDArray[np.intp] | None = None,
 ) -> Cholmod | _CHOLMOD:
-    """CHOLMOD's factorization of the pattern, called directly where it can be, else through CVXOPT
-    (``variables``: the variables' order ``ordering`` expands, for the direct call)."""
+    """CHOLMOD's factorization of the pattern, called directly where it can be, else through CVXOPT.
+    With ``blocks``, ``variables`` (the variables' fill-reducing order) stands for ``ordering``:
+    CVXOPT's interface gets it expanded to the coordinates."""
     if indptr.dtype == np.int32 and indices.dtype == np.int32 and available():
         return Cholmod(indptr, indices, ordering, supernodal, blocks, variables=variables)
+    if ordering is None and blocks is not None and variables is not None:
+        ordering = coordinates(exclusive_cumsum(blocks[0].astype(np.intp)), blocks[0], variables)
     return _CHOLMOD(indptr, indices, ordering, supernodal, blocks)
-
-
-def _block_order(perm: NDArray[np.intp], dims: IndexArray) -> NDArray[np.intp] | None:
-    """The variables' order if ``perm`` keeps each variable's coordinates together and in order
-    (as a fill-reducing ordering of the variables and its postorder do), else ``None``."""
-    offsets = exclusive_cumsum(dims)
-    variable = np.repeat(np.arange(dims.size), dims)[perm]
-    order = variable[perm == offsets[:-1][variable]]
-    if order.size != dims.size:
-        return None
-    return order if np.array_equal(perm, coordinates(offsets, dims, order)) else None
 
 
 def _permuted_triangle(
@@ -202,7 +194,9 @@ class Cholmod:
     ``ordering``: the fill-reducing ordering to follow (``None``: CHOLMOD's own choice);
     ``blocks``: the pattern's block form ``(dims, block indptr, block rows)``, from which the
     permuted triangle is built fast (trusted; without it, through SciPy); ``variables``: with
-    ``blocks``, the variables' order that ``ordering`` expands (trusted; else recovered from it).
+    ``blocks``, the variables' fill-reducing order, which then stands for ``ordering`` (trusted):
+    the analysis runs on the variables' graph (:meth:`_analyze_blocks`). Without both, the
+    pattern is analysed as it is.
     """
 
     def __init__(
@@ -226,12 +220,8 @@ class Cholmod:
         common.supernodal = supernodal_setting(supernodal)
         self._handle = c_void_p()  # the factor (a cholmod_factor*), freed with the Common
         self._release = weakref.finalize(self, _release, lib, self._common, self._handle)
-        order = variables
-        if order is None and blocks is not None and ordering is not None:
-            order = _block_order(np.asarray(ordering), blocks[0])
-        if order is not None:
-            assert blocks is not None
-            self._perm, (self._indptr, self._indices, gather) = self._analyze_blocks(indptr, blocks, order)
+        if blocks is not None and variables is not None:
+            self._perm, (self._indptr, self._indices, gather) = self._analyze_blocks(indptr, blocks, variables)
         else:
             self._perm = self._analyze_pattern(indptr, indices, ordering)
             triangle = _permuted_triangle(indptr, indices, self._perm, not self.supernodal)
@@ -258,7 +248,8 @@ class Cholmod:
         pattern = _Sparse(n, n, indices32.size, indptr32.ctypes.data, indices32.ctypes.data, None, None, None,
                           stype, _INT, _PATTERN, _DOUBLE, 1, 1)  # fmt: skip
         common.nmethods = 1 if given is not None or natural else 0  # 0: CHOLMOD's default choice
-        common.method[0].ordering = _GIVEN if given is not None else _NATURAL if natural else common.method[0].ordering
+        if given is not None or natural:
+            common.method[0].ordering = _GIVEN if given is not None else _NATURAL
         common.postorder = int(not natural)
         perm = None if given is None else np.ascontiguousarray(given, dtype=np.int32)
         analysed = self._lib.cholmod_analyze_p(byref(pattern), None if perm is None else perm.ctypes.data, None, 0,
@@ -309,6 +300,7 @@ class Cholmod:
         uniform = int(dims.max()) == d and _patterns._library() is not None
         block: _Factor | None = None
         counts: NDArray[np.int64] | None = None
+        triangle: Triangle | None = None
         found = _patterns.block_symbolic(block_indptr, block_rows, order) if uniform and wanted != _SUPERNODAL else None
         if found is not None:
             variables, counts = found
@@ -332,15 +324,14 @@ class Cholmod:
             assert source is not None  # a simplicial analysis has its counts
             if self._expand(d, source):
                 self.cost = (float(lnz), float(fl))
-                perm = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
-                return perm, _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
-        perm = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
-        upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
-        triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
-        self._analyze(*triangle[:2], 1 if upper else -1, natural=True)
-        if upper == self.supernodal:  # CHOLMOD chose the other kind: it factors the other triangle
-            triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not upper)
-        return perm, triangle
+                triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
+        if triangle is None:  # B's triangle analysed as it is
+            upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
+            triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
+            self._analyze(*triangle[:2], 1 if upper else -1, natural=True)
+            if upper == self.supernodal:  # CHOLMOD chose the other kind: it factors the other triangle
+                triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not upper)
+        return coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables), triangle
 
     def _analyze_variables(self, block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp],
                            kind: int, d: int) -> _Factor:  # fmt: skip

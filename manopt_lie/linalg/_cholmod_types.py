@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._native import declare
+
 # CHOLMOD's constants (cholmod_core.h, cholmod_cholesky.h).
 _INT, _PATTERN, _REAL, _DOUBLE = 0, 0, 1, 0
 _NATURAL, _GIVEN, _AMD = 0, 1, 2
@@ -126,8 +128,7 @@ def cvxopt_library(name: str, signatures: Mapping[str, tuple[Any, Sequence[Any]]
         lib = ctypes.CDLL(path) if path else None
         if lib is None:
             return None
-        for function, (restype, argtypes) in signatures.items():
-            getattr(lib, function).restype, getattr(lib, function).argtypes = restype, argtypes
+        declare(lib, signatures)
     except (OSError, AttributeError):
         return None
     return lib

@@ -227,8 +227,8 @@ class CholeskySolver:
                 assert self._structure is not None
                 structure = self._structure
                 block_form = (structure.dims, *structure.block_pattern)
-                impl = cholmod_backend(H.indptr, H.indices, structure.fill_reducing_ordering(), self.supernodal,
-                                       block_form, structure.variable_ordering())  # fmt: skip
+                impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal, block_form,
+                                       structure.variable_ordering())  # fmt: skip
             elif self.backend == "cholmod":
                 impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal)
             else:
