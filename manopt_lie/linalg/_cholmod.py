@@ -175,11 +175,14 @@ def _permuted_triangle(
 
 
 def _block_triangle(indptr: IndexArray, dims: IndexArray, block_indptr: IndexArray, block_rows: IndexArray,
-                    order: NDArray[np.intp], upper: bool) -> Triangle:  # fmt: skip
-    """:func:`permuted_block_triangle`, built in compiled code where it can be (``_patterns``)."""
+                    order: NDArray[np.intp], upper: bool) -> tuple[Triangle, NDArray[np.intp]]:  # fmt: skip
+    """:func:`permuted_block_triangle` and ``P`` (the coordinates of the variables in ``order``), built
+    in compiled code where it can be (``_patterns``)."""
     args = (indptr, dims, block_indptr, block_rows, order, upper)
     compiled = _patterns.permuted_block_triangle(*args)
-    return compiled if compiled is not None else permuted_block_triangle(*args)
+    if compiled is not None:
+        return compiled
+    return permuted_block_triangle(*args), coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, order)
 
 
 def _release(lib: Any, common: Any, factor: Any) -> None:
@@ -300,7 +303,7 @@ class Cholmod:
         uniform = int(dims.max()) == d and _patterns._library() is not None
         block: _Factor | None = None
         counts: NDArray[np.int64] | None = None
-        triangle: Triangle | None = None
+        made: tuple[Triangle, NDArray[np.intp]] | None = None
         found = _patterns.block_symbolic(block_indptr, block_rows, order) if uniform and wanted != _SUPERNODAL else None
         if found is not None:
             variables, counts = found
@@ -324,14 +327,15 @@ class Cholmod:
             assert source is not None  # a simplicial analysis has its counts
             if self._expand(d, source):
                 self.cost = (float(lnz), float(fl))
-                triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
-        if triangle is None:  # B's triangle analysed as it is
+                made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
+        if made is None:  # B's triangle analysed as it is
             upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
-            triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
-            self._analyze(*triangle[:2], 1 if upper else -1, natural=True)
+            made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
+            self._analyze(*made[0][:2], 1 if upper else -1, natural=True)
             if upper == self.supernodal:  # CHOLMOD chose the other kind: it factors the other triangle
-                triangle = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not upper)
-        return coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables), triangle
+                made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not upper)
+        triangle, perm = made
+        return perm, triangle
 
     def _analyze_variables(self, block_indptr: IndexArray, block_rows: IndexArray, order: NDArray[np.intp],
                            kind: int, d: int) -> _Factor:  # fmt: skip
@@ -379,7 +383,7 @@ class Cholmod:
             raise
         if not isinstance(variables_factor, _Factor):
             counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
-            np.subtract(d * variables_factor[:, None], np.arange(d), out=counts, casting="unsafe")
+            np.subtract((d * variables_factor).astype(np.int32)[:, None], np.arange(d, dtype=np.int32), out=counts)
             factor.is_ll = 0
         factor.ordering = _NATURAL
         lib.cholmod_free_factor(byref(self._handle), self._common)

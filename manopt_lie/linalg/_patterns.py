@@ -44,7 +44,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "layout": (_I, [_I, _P, _P, _P, _P, _P, _P]),
     "expand_pattern": (None, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "factor_scatter": (None, [_I, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
-    "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P]),
+    "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
 }
@@ -74,19 +74,19 @@ def hessian_pattern(
     if library is None or n >= INT32_MAX or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors):
         return None
     nv = dims.size
-    dims64, offsets64 = dims.astype(np.int64), offsets.astype(np.int64)
+    dims64, offsets64 = (np.ascontiguousarray(a, dtype=np.int64) for a in (dims, offsets))
     ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
-    arity = np.array([a.shape[1] for a in ids], dtype=np.int64)
-    m = np.array([f.m for f in factors], dtype=np.int64)
-    block_ptr = np.empty(nv + 1, dtype=np.int64)
-    block_rows = np.empty(nv + int(np.dot(m, arity * arity)), dtype=np.int64)
-    blocks = [np.empty(f.m * a * a, dtype=np.int64) for f, a in zip(factors, arity.tolist(), strict=True)]
+    arities = [a.shape[1] for a in ids]
+    arity, m = np.array(arities, dtype=np.int64), np.array([f.m for f in factors], dtype=np.int64)
+    block_ptr = np.empty(nv + 1, dtype=np.int32)
+    block_rows = np.empty(nv + sum(f.m * a * a for f, a in zip(factors, arities, strict=True)), dtype=np.int32)
+    blocks = [np.empty(f.m * a * a, dtype=np.int32) for f, a in zip(factors, arities, strict=True)]
     nb = library.block_pattern(nv, len(ids), _at(m), _at(arity), _pointers(ids), _at(block_ptr), _at(block_rows),
                                _pointers(blocks))  # fmt: skip
     if nb < 0:
         raise MemoryError("patterns.c: no memory for the block pattern")
-    block_rows = block_rows[:nb]
-    L, base, within = np.empty(nv, dtype=np.int64), np.empty(nv + 1, dtype=np.int64), np.empty(nb, dtype=np.int64)
+    block_rows = block_rows[:nb].copy()  # not the candidates' room
+    L, base, within = np.empty(nv, dtype=np.int64), np.empty(nv + 1, dtype=np.int64), np.empty(nb, dtype=np.int32)
     nnz = library.layout(nv, _at(dims64), _at(block_ptr), _at(block_rows), _at(L), _at(base), _at(within))
     if nnz >= INT32_MAX:
         return None
@@ -100,29 +100,35 @@ def hessian_pattern(
         library.factor_scatter(f.m, a.shape[1], _at(slot_dims), _at(a), _at(b), _at(offsets64), _at(L), _at(base),
                                _at(within), _at(positions), _at(columns))  # fmt: skip
         scatters.append((positions, columns))
-    return (block_ptr.astype(np.int32), block_rows.astype(np.int32)), indptr, indices, diagonal, scatters
+    return (block_ptr, block_rows), indptr, indices, diagonal, scatters
+
+
+def _int32(*arrays: NDArray[np.signedinteger]) -> bool:
+    return all(a.dtype == np.int32 for a in arrays)
 
 
 def permuted_block_triangle(
     indptr: NDArray[np.signedinteger], dims: NDArray[np.signedinteger], block_indptr: NDArray[np.signedinteger],
     block_rows: NDArray[np.signedinteger], order: NDArray[np.intp], upper: bool = False,
-) -> tuple[Int32, Int32, Int32] | None:
-    """:func:`~manopt_lie.linalg._triangles.permuted_block_triangle` (the same arrays) for a 32-bit
-    ``H``, or ``None``."""
+) -> tuple[tuple[Int32, Int32, Int32], NDArray[np.intp]] | None:
+    """:func:`~manopt_lie.linalg._triangles.permuted_block_triangle` (the same arrays) and ``P`` as
+    the coordinates of ``H`` in ``B``'s order (``_factors.coordinates`` of ``order``), for a 32-bit
+    ``H`` and block pattern; else ``None``."""
     library = _library()
-    if library is None or indptr.dtype != np.int32:
+    if library is None or not _int32(indptr, block_indptr, block_rows):
         return None
     nv, n = dims.size, indptr.size - 1
     size = (int(indptr[-1]) + n) // 2  # one triangle of a symmetric pattern, its diagonal included
     out_ptr, rows, gather = np.empty(n + 1, np.int32), np.empty(size, np.int32), np.empty(size, np.int32)
-    as64 = [np.ascontiguousarray(a, dtype=np.int64) for a in (dims, block_indptr, block_rows, order)]
-    status = library.permuted_triangle(nv, *(_at(a) for a in (as64[0], indptr, *as64[1:])), int(upper), size,
-                                       _at(out_ptr), _at(rows), _at(gather))  # fmt: skip
+    perm = np.empty(n, dtype=np.int64)
+    dims64, order64 = (np.ascontiguousarray(a, dtype=np.int64) for a in (dims, order))
+    status = library.permuted_triangle(nv, *(_at(a) for a in (dims64, indptr, block_indptr, block_rows, order64)),
+                                       int(upper), size, _at(out_ptr), _at(rows), _at(gather), _at(perm))  # fmt: skip
     if status == -1:
         raise MemoryError("patterns.c: no memory for the permuted triangle")
     if status < 0 or out_ptr[-1] != size:
         raise ValueError("permuted_block_triangle: the blocks do not make H's pattern (its indptr)")
-    return out_ptr, rows, gather
+    return (out_ptr, rows, gather), perm.astype(np.intp, copy=False)
 
 
 def block_symbolic(
@@ -133,13 +139,13 @@ def block_symbolic(
     block included), in that order; ``None`` without the library or where ``L`` would hold more
     than :data:`SIMPLICIAL_FILL` blocks per stored block (CHOLMOD then analyses)."""
     library = _library()
-    if library is None:
+    if library is None or not _int32(block_indptr, block_rows):
         return None
     nv = block_indptr.size - 1
-    indptr, rows, order64 = (np.ascontiguousarray(a, dtype=np.int64) for a in (block_indptr, block_rows, order))
+    order64 = np.ascontiguousarray(order, dtype=np.int64)
     variables, counts = np.empty(nv, dtype=np.int64), np.empty(nv, dtype=np.int64)
-    status = library.block_symbolic(nv, _at(indptr), _at(rows), _at(order64), SIMPLICIAL_FILL * rows.size,
-                                    _at(variables), _at(counts))  # fmt: skip
+    status = library.block_symbolic(nv, _at(block_indptr), _at(block_rows), _at(order64),
+                                    SIMPLICIAL_FILL * block_rows.size, _at(variables), _at(counts))  # fmt: skip
     if status == -1:
         raise MemoryError("patterns.c: no memory for the variables' symbolic factorization")
-    return (variables.astype(np.intp), counts) if status == 0 else None
+    return (variables.astype(np.intp, copy=False), counts) if status == 0 else None

@@ -17,6 +17,7 @@
  */
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 typedef int64_t i64;
 typedef int32_t i32;
@@ -41,15 +42,16 @@ static void sort(i64* a, i64 n) {
 /* The variables' graph: block k of column v for every pair of slots (s, t) of every edge (rows of
  * slot s in the columns of slot t) and every diagonal block, sorted and without repeats, as block
  * CSC (bptr: nv + 1, brows: room for nv + sum_f m_f a_f^2, filled with the nb blocks first); and
- * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t). Each column's candidates are
+ * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t); all 32-bit (the caller
+ * checks that H's order fits). Each column's candidates are
  * gathered with where their block goes; the distinct rows are told apart by a mark per row and
  * only they are sorted. Returns nb, -1 without memory. */
-i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i64* bptr,
-                  i64* brows, i64* const* blocks) {
+i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i32* bptr,
+                  i32* brows, i32* const* blocks) {
   i64 candidates = nv;
   for (i64 f = 0; f < n_factors; ++f) candidates += m[f] * arity[f] * arity[f];
   i64* fill = calloc((size_t)(3 * nv + 1), sizeof(i64));
-  i64** dest = malloc(sizeof(i64*) * (size_t)candidates); /* where each candidate's block index goes */
+  i32** dest = malloc(sizeof(i32*) * (size_t)candidates); /* where each candidate's block index goes */
   if (!fill || !dest) {
     free(fill), free(dest);
     return -1;
@@ -64,14 +66,14 @@ i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i
     if (fill[v + 1] > longest) longest = fill[v + 1];
     fill[v + 1] += fill[v];
   }
-  for (i64 v = 0; v < nv; ++v) dest[fill[v]] = NULL, brows[fill[v]++] = v;
+  for (i64 v = 0; v < nv; ++v) dest[fill[v]] = NULL, brows[fill[v]++] = (i32)v;
   for (i64 f = 0; f < n_factors; ++f) {
     const i64 a = arity[f], mf = m[f];
     const i64* edges = ids[f];
     for (i64 e = 0; e < mf; ++e)
       for (i64 t = 0; t < a; ++t) {
         i64 v = edges[e * a + t];
-        for (i64 s = 0; s < a; ++s) dest[fill[v]] = blocks[f] + (t * mf + e) * a + s, brows[fill[v]++] = edges[e * a + s];
+        for (i64 s = 0; s < a; ++s) dest[fill[v]] = blocks[f] + (t * mf + e) * a + s, brows[fill[v]++] = (i32)edges[e * a + s];
       }
   }
   i64* distinct = malloc(sizeof(i64) * (size_t)(longest > 0 ? longest : 1));
@@ -88,12 +90,12 @@ i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i
     sort(distinct, count);
     for (i64 k = 0; k < count; ++k) where[distinct[k]] = nb + k;
     for (i64 i = start; i < end; ++i)
-      if (dest[i]) *dest[i] = where[brows[i]];
-    bptr[v] = nb;
-    for (i64 k = 0; k < count; ++k) brows[nb++] = distinct[k]; /* behind what is left to read: nb <= start */
+      if (dest[i]) *dest[i] = (i32)where[brows[i]];
+    bptr[v] = (i32)nb;
+    for (i64 k = 0; k < count; ++k) brows[nb++] = (i32)distinct[k]; /* behind what is left to read: nb <= start */
     start = end;
   }
-  bptr[nv] = nb;
+  bptr[nv] = (i32)nb;
   free(distinct);
   free(dest);
   free(fill);
@@ -101,12 +103,12 @@ i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i
 }
 
 /* The layout of H.data: L (nv), base (nv + 1) and within (nb). Returns nnz = base[nv]. */
-i64 layout(i64 nv, const i64* dims, const i64* bptr, const i64* brows, i64* L, i64* base, i64* within) {
+i64 layout(i64 nv, const i64* dims, const i32* bptr, const i32* brows, i64* L, i64* base, i32* within) {
   base[0] = 0;
   for (i64 v = 0; v < nv; ++v) {
     i64 length = 0;
     for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
-      within[k] = length;
+      within[k] = (i32)length;
       length += dims[brows[k]];
     }
     L[v] = length;
@@ -116,19 +118,24 @@ i64 layout(i64 nv, const i64* dims, const i64* bptr, const i64* brows, i64* L, i
 }
 
 /* H's scalar CSC pattern from the blocks and the layout: indptr (n + 1), indices (nnz) and the
- * position of every diagonal entry (n). Each column of v lists the rows of v's blocks in order. */
-void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i64* bptr, const i64* brows,
+ * position of every diagonal entry (n). Each column of v lists the rows of v's blocks in order:
+ * the first one is written, the others (the same rows) copied from it. */
+void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i32* bptr, const i32* brows,
                     const i64* L, const i64* base, i32* indptr, i32* indices, i32* diagonal) {
-  for (i64 v = 0; v < nv; ++v)
-    for (i64 j = 0; j < dims[v]; ++j) {
-      i64 at = base[v] + j * L[v];
-      indptr[offsets[v] + j] = (i32)at;
-      for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
-        i64 w = brows[k];
-        if (w == v) diagonal[offsets[v] + j] = (i32)(at + j);
-        for (i64 i = 0; i < dims[w]; ++i) indices[at++] = (i32)(offsets[w] + i);
-      }
+  for (i64 v = 0; v < nv; ++v) {
+    i64 at = base[v], diagonal_at = 0;
+    i32* first = indices + at;
+    for (i64 k = bptr[v]; k < bptr[v + 1]; ++k) {
+      i64 w = brows[k];
+      if (w == v) diagonal_at = at;
+      for (i64 i = 0; i < dims[w]; ++i) indices[at++] = (i32)(offsets[w] + i);
     }
+    for (i64 j = 0; j < dims[v]; ++j) {
+      indptr[offsets[v] + j] = (i32)(base[v] + j * L[v]);
+      diagonal[offsets[v] + j] = (i32)(diagonal_at + j * L[v] + j);
+      if (j) memcpy(first + j * L[v], first, sizeof(i32) * (size_t)L[v]);
+    }
+  }
   indptr[offsets[nv]] = (i32)base[nv];
 }
 
@@ -136,8 +143,8 @@ void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i64* bptr
  * row p in slot t at coordinate j of its variable b: column o_b + j, which starts at
  * base_b + j L_b; column q in slot s at coordinate i: row i of block[t, e, s] in it) and the
  * coordinate of every column of A_e (m W). */
-void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, const i64* blocks,
-                    const i64* offsets, const i64* L, const i64* base, const i64* within, i32* positions,
+void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, const i32* blocks,
+                    const i64* offsets, const i64* L, const i64* base, const i32* within, i32* positions,
                     i32* columns) {
   i64 width = 0;
   for (i64 s = 0; s < arity; ++s) width += slot_dims[s];
@@ -164,16 +171,18 @@ void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, cons
  * its coordinates in order, as CSC (indptr: n + 1, rows: (nnz + n) / 2, sorted) and the position in
  * H.data of each entry (gather). Column (c, j) of B (variable v = order[c], coordinate j) holds
  * the rows i >= j of v's diagonal block, then the off-diagonal blocks below it in B's order (the
- * upper triangle: the blocks above, then the rows i <= j); size: the room in rows and gather. Returns
- * 0, -1 without memory, -2 where the blocks would write past size (they do not make H's pattern). */
-int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* bptr, const i64* brows,
-                      const i64* order, int upper, i64 size, i32* indptr, i32* rows, i32* gather) {
+ * upper triangle: the blocks above, then the rows i <= j); size: the room in rows and gather. Also
+ * writes P as H's coordinate of each of B's (perm: n). Returns 0, -1 without memory, -2 where the
+ * blocks would write past size (they do not make H's pattern). */
+int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
+                      const i64* order, int upper, i64 size, i32* indptr, i32* rows, i32* gather, i64* perm) {
   i64 nb = bptr[nv];
-  i64* rank = malloc(sizeof(i64) * (size_t)(2 * nv + 2 * nb + 2));
+  i64* rank = malloc(sizeof(i64) * (size_t)(3 * nv + 2 * nb + 2));
   if (!rank) return -1;
   i64* new_offsets = rank + nv;      /* nv + 1 */
   i64* keys = new_offsets + nv + 1;  /* one column's off-diagonal blocks: rank * nb + k */
   i64* start = keys + nb;            /* s_k: where block k's entry (o_w, o_v) sits in H.data */
+  i64* offsets = start + nb;         /* o_v */
   for (i64 c = 0; c < nv; ++c) rank[order[c]] = c;
   new_offsets[0] = 0;
   for (i64 c = 0; c < nv; ++c) new_offsets[c + 1] = new_offsets[c] + dims[order[c]];
@@ -184,8 +193,11 @@ int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i64* b
       start[k] = first + down;
       down += dims[brows[k]];
     }
+    offsets[v] = offset;
     offset += dims[v];
   }
+  for (i64 c = 0; c < nv; ++c)
+    for (i64 i = 0; i < dims[order[c]]; ++i) perm[new_offsets[c] + i] = offsets[order[c]] + i;
   i64 at = 0, column = 0;
   for (i64 c = 0; c < nv; ++c) {
     i64 v = order[c], d = dims[v], length = 0, count = 0, diagonal = -1;
@@ -288,7 +300,7 @@ int expand_supernodes(i64 nsuper, const i64* dims, const i32* super_b, const i32
  * j-th) and counts (nv, in that order). The row subtrees take nnz(L) steps: past `budget` the
  * factor fills in too much for a simplicial one, and the caller asks CHOLMOD instead. Returns 0,
  * -1 without memory, -2 past the budget. */
-int block_symbolic(i64 nv, const i64* bptr, const i64* brows, const i64* order, i64 budget, i64* variables,
+int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, i64 budget, i64* variables,
                    i64* counts) {
   i64* work = malloc(sizeof(i64) * (size_t)(6 * nv + 1));
   if (!work) return -1;

@@ -198,8 +198,11 @@ def test_structure_keys_tell_graphs_apart():
         structure_key(dims, [(chain, 2)], False),
         structure_key(dims, [(chain, 3)], True),
         structure_key(dims, [(chain, 3), (chain, 3)], False),
+        structure_key(np.array([3, 2, 3, 3]), [(chain, 3)], False),
+        structure_key(np.array([3, 3, 2, 3]), [(chain, 3)], False),
+        structure_key(dims, [(chain + np.array([0, 2**32]), 3)], False),  # not hashed as its 32-bit wrap
     }
-    assert len(keys) == 7
+    assert len(keys) == 10
     assert structure_key(dims, [(chain, 3)], False) == structure_key(dims.copy(), [(chain.copy(), 3)], False)
 
 

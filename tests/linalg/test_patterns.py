@@ -9,6 +9,7 @@ import pytest
 import scipy.sparse as sp
 
 from manopt_lie.linalg import BlockStructure, _amd, _cholmod, _patterns, structure
+from manopt_lie.linalg._factors import coordinates
 from manopt_lie.linalg._triangles import permuted_block_triangle
 from manopt_lie.linalg.selected_inverse import _cholmod_factor
 
@@ -62,9 +63,11 @@ def test_the_compiled_triangle_is_numpys(rng, upper):
     for order in (np.arange(dims.size), rng.permutation(dims.size), S.variable_ordering()):
         made = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper)
         assert made is not None
-        for a, b in zip(made, permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper), strict=True):
+        triangle, perm = made
+        for a, b in zip(triangle, permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper), strict=True):
             assert a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(perm, coordinates(S.offsets, S.dims, order))
 
 
 def test_without_compiled_code_numpy_builds_the_structure(monkeypatch, rng):
