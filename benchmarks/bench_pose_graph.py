@@ -22,7 +22,8 @@ For each dataset (``$MANOPT_LIE_DATA`` or ``../shared/datasets``):
 
 A summary table follows: per dataset the LM, GN and dogleg ratios and the iterations
 ours/GTSAM, their geometric means, and the share of LM's time spent on what a solve does
-once (building the structure and analysing the pattern: :func:`setup_time`; "—" where LM ran
+once (building the structure and analysing the pattern: :func:`setup_time`, the median of at least
+:data:`SETUP_SAMPLES`; "—" where LM ran
 a small pose graph's iterations in compiled code, which builds neither: ``compiled`` in the JSON).
 ``python benchmarks/bench_pose_graph.py [--datasets …] [--repeat 3] [--reference] [--json out.json]``.
 """
@@ -51,6 +52,9 @@ GTSAM_RULE = 1e-5  # GTSAM's default relativeErrorTol
 OURS = {"LM": LevenbergMarquardt, "GN": GaussNewton, "Dogleg": Dogleg}
 PEERS = {"GTSAM LM": "gtsam-lm", "GTSAM Dogleg": "gtsam-dogleg"}
 AGAINST = {"LM": "GTSAM LM", "GN": "GTSAM LM", "Dogleg": "GTSAM Dogleg"}
+SETUP_SAMPLES = 31
+"""Samples of :func:`setup_time` at least (a difference of two ~ms timings: with 7, its median moved
+±5 points of share between runs on CSAIL and intel; each sample costs two linearizations and solves)."""
 data_dir = catalogue.default_data_dir
 
 
@@ -125,7 +129,7 @@ def bench(name: str, repeat: int, reference: bool) -> list[dict[str, Any]]:
         }
     )  # fmt: skip
     runs = geodesic_runs(graph, x0, repeat)
-    setup = statistics.median(setup_time(graph, x0) for _ in range(repeat))
+    setup = statistics.median(setup_time(graph, x0) for _ in range(max(repeat, SETUP_SAMPLES)))
     for solver, run in runs.items():
         peer = runs.get(AGAINST.get(solver, ""))
         rows.append(

@@ -103,9 +103,9 @@ def _array(address: int | None, dtype: type, size: int) -> NDArray[Any]:
         return np.empty(0, dtype=dtype)
     if not address:
         raise RuntimeError("CHOLMOD returned no array where it should hold one")
-    # A buffer of bytes at the address, read as dtype: 0.6 µs, against 3.5 through a typed pointer.
+    # A buffer of bytes at the address, read as dtype: 2 µs a call, against 4 through a typed pointer.
     item = np.dtype(dtype)
-    return np.frombuffer((ctypes.c_char * (size * item.itemsize)).from_address(address), dtype=item)
+    return np.frombuffer(memoryview((ctypes.c_char * (size * item.itemsize)).from_address(address)), dtype=item)
 
 
 def loaded_library(name: str) -> str | None:

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
 from ._amd import amd_order
-from ._analyses import digest
+from ._analyses import STRUCTURES, digest, structure_key
 from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import hessian_pattern
 from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
@@ -144,6 +144,20 @@ class BlockStructure:
         self._local = threading.local()
         self._first: tuple[int, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]] | None = None
         self._jac: _JacobianPattern | None = None
+
+    @classmethod
+    def shared(
+        cls, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False
+    ) -> BlockStructure:
+        """The structure of these arguments (the constructor's) from the process's pool: the one
+        built already for the same dimensions, edge arrays and residual lengths — by any problem:
+        a graph solved again, another cost or other measurements on it — else a new one, which is
+        then kept (at most :data:`~manopt_lie.linalg._analyses.MAX_IDLE` structures;
+        :func:`~manopt_lie.linalg.clear_caches` empties the pool). Its :meth:`pattern_digest` is
+        the pool's key."""
+        dims_, pairs = np.asarray(dims), [(np.asarray(ids), int(r)) for ids, r in factors]
+        key = structure_key(dims_, pairs, dense)
+        return STRUCTURES.get(key, lambda: cls(dims_, pairs, dense=dense, inputs_digest=key))
 
     def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]:
         """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A, and

@@ -31,7 +31,6 @@ from numpy.typing import NDArray
 
 from ..errors import NonFiniteError, ShapeError
 from ..linalg import DENSE_MAX, BlockStructure
-from ..linalg._analyses import STRUCTURES, structure_key
 from ..manifolds import Blocks, Power
 from ._values import check_result, same_point, snapshot
 from .losses import RobustLoss, Trivial, parse_loss
@@ -531,8 +530,7 @@ class LeastSquaresProblem(Problem):
                 dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
                 dense = int(dims.sum()) <= DENSE_MAX
                 # Another problem of the same graph (a repeated solve, other measurements) built it already.
-                key = structure_key(dims, shapes, dense)
-                structure = STRUCTURES.get(key, lambda: BlockStructure(dims, shapes, dense=dense, inputs_digest=key))
+                structure = BlockStructure.shared(dims, shapes, dense=dense)
                 self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
                 self._structure = structure
             return self._structure

@@ -98,6 +98,20 @@ def test_a_digest_of_the_inputs_serves_as_the_patterns():
     assert a.pattern_digest().startswith(key)
 
 
+def test_shared_structures_come_from_the_pool():
+    """``BlockStructure.shared``: one structure for equal inputs (lists or arrays alike), another for
+    other inputs or the dense flag, a new one after ``clear_caches``; keyed by its inputs' digest."""
+    chain = np.array([[0, 1], [1, 2]])
+    first = BlockStructure.shared(np.array([3, 3, 3]), [(chain, 3)])
+    assert BlockStructure.shared([3, 3, 3], [(chain.tolist(), 3)]) is first and STRUCTURES.hits == 1
+    assert first.pattern_digest().startswith(structure_key(np.array([3, 3, 3]), [(chain, 3)], False))
+    others = [BlockStructure.shared([3, 3, 3], [(chain[:1], 3)]),
+              BlockStructure.shared([3, 3, 3], [(chain, 3)], dense=True)]  # fmt: skip
+    assert all(o is not first for o in others) and len(STRUCTURES) == 3
+    clear_caches()
+    assert BlockStructure.shared([3, 3, 3], [(chain, 3)]) is not first
+
+
 def test_keys_of_a_copied_pattern_hash_its_coordinates(rng):
     """A matrix that is not the structure's own (copied arrays) is keyed by its coordinates, so
     equal patterns share a key whoever built them, and the block digest never collides with one."""

@@ -64,7 +64,8 @@ def test_the_compiled_triangle_is_numpys(rng, upper):
         made = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper)
         assert made is not None
         triangle, perm = made
-        for a, b in zip(triangle, permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper), strict=True):
+        numpys = permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, order, upper)
+        for a, b in zip(triangle, numpys, strict=True):
             assert a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(perm, coordinates(S.offsets, S.dims, order))
