@@ -177,12 +177,14 @@ void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, cons
 int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
                       const i64* order, int upper, i64 size, i32* indptr, i32* rows, i32* gather, i64* perm) {
   i64 nb = bptr[nv];
-  i64* rank = malloc(sizeof(i64) * (size_t)(3 * nv + 2 * nb + 2));
+  i64* rank = malloc(sizeof(i64) * (size_t)(3 * nv + 4 * nb + 2));
   if (!rank) return -1;
   i64* new_offsets = rank + nv;      /* nv + 1 */
-  i64* keys = new_offsets + nv + 1;  /* one column's off-diagonal blocks: rank * nb + k */
+  i64* keys = new_offsets + nv + 1;  /* one column's off-diagonal blocks: rank * nb + k, sorted; then s_k */
   i64* start = keys + nb;            /* s_k: where block k's entry (o_w, o_v) sits in H.data */
   i64* offsets = start + nb;         /* o_v */
+  i64* first_row = offsets + nv;     /* per sorted block: its first row in B */
+  i64* height = first_row + nb;      /* and its rows */
   for (i64 c = 0; c < nv; ++c) rank[order[c]] = c;
   new_offsets[0] = 0;
   for (i64 c = 0; c < nv; ++c) new_offsets[c + 1] = new_offsets[c] + dims[order[c]];
@@ -209,7 +211,11 @@ int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i32* b
     }
     sort(keys, count);
     i64 stream = 0;
-    for (i64 x = 0; x < count; ++x) stream += dims[brows[keys[x] % nb]];
+    for (i64 x = 0; x < count; ++x) { /* decoded once for the d columns (a division each) */
+      i64 k = keys[x] % nb, r = keys[x] / nb;
+      first_row[x] = new_offsets[r], height[x] = dims[brows[k]], keys[x] = start[k];
+      stream += height[x];
+    }
     if (diagonal < 0 || at + d * stream + d * (d + 1) / 2 > size) { /* not the blocks of H's pattern */
       free(rank);
       return -2;
@@ -219,11 +225,9 @@ int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i32* b
       indptr[column] = (i32)at;
       if (!upper)
         for (i64 i = j; i < d; ++i, ++at) rows[at] = (i32)(new_offsets[c] + i), gather[at] = (i32)(start[diagonal] + step + i);
-      for (i64 x = 0; x < count; ++x) {
-        i64 k = keys[x] % nb, r = keys[x] / nb;
-        for (i64 i = 0; i < dims[brows[k]]; ++i, ++at)
-          rows[at] = (i32)(new_offsets[r] + i), gather[at] = (i32)(start[k] + step + i);
-      }
+      for (i64 x = 0; x < count; ++x)
+        for (i64 i = 0; i < height[x]; ++i, ++at)
+          rows[at] = (i32)(first_row[x] + i), gather[at] = (i32)(keys[x] + step + i);
       if (upper)
         for (i64 i = 0; i <= j; ++i, ++at) rows[at] = (i32)(new_offsets[c] + i), gather[at] = (i32)(start[diagonal] + step + i);
     }
