@@ -159,8 +159,13 @@ def cholmod_backend(
     if indptr.dtype == np.int32 and indices.dtype == np.int32 and available():
         return Cholmod(indptr, indices, ordering, supernodal, blocks, variables=variables)
     if ordering is None and blocks is not None and variables is not None:
-        ordering = coordinates(exclusive_cumsum(blocks[0].astype(np.intp)), blocks[0], variables)
+        ordering = _coordinates(blocks[0], variables)
     return _CHOLMOD(indptr, indices, ordering, supernodal, blocks)
+
+
+def _coordinates(dims: IndexArray, order: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The coordinates of the variables in ``order``, each variable's kept together and in order."""
+    return coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, order)
 
 
 def _permuted_triangle(
@@ -182,7 +187,7 @@ def _block_triangle(indptr: IndexArray, dims: IndexArray, block_indptr: IndexArr
     compiled = _patterns.permuted_block_triangle(*args)
     if compiled is not None:
         return compiled
-    return permuted_block_triangle(*args), coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, order)
+    return permuted_block_triangle(*args), _coordinates(dims, order)
 
 
 def _release(lib: Any, common: Any, factor: Any) -> None:
@@ -368,23 +373,24 @@ class Cholmod:
         CHOLMOD would (:meth:`_analyze_variables`). The arrays are allocated by CHOLMOD, as its
         analysis would allocate them."""
         lib, n, nv = self._lib, self._n, self._n // d
-        supernodal = isinstance(variables_factor, _Factor)
         factor_p = lib.cholmod_allocate_factor(n, self._common)  # natural order, simplicial, no rows
         if not factor_p:
             raise MemoryError("CHOLMOD could not allocate a factor")
         handle = c_void_p(ctypes.cast(factor_p, c_void_p).value)
         factor = factor_p.contents
         try:
-            if isinstance(variables_factor, _Factor) and not self._expand_supernodes(variables_factor, factor, d):
-                lib.cholmod_free_factor(byref(handle), self._common)
-                return False
+            if isinstance(variables_factor, _Factor):
+                supernodal, made = True, self._expand_supernodes(variables_factor, factor, d)
+            else:
+                counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
+                np.subtract((d * variables_factor).astype(np.int32)[:, None], np.arange(d, dtype=np.int32), out=counts)
+                factor.is_ll, supernodal, made = 0, False, True
         except BaseException:
             lib.cholmod_free_factor(byref(handle), self._common)
             raise
-        if not isinstance(variables_factor, _Factor):
-            counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
-            np.subtract((d * variables_factor).astype(np.int32)[:, None], np.arange(d, dtype=np.int32), out=counts)
-            factor.is_ll = 0
+        if not made:
+            lib.cholmod_free_factor(byref(handle), self._common)
+            return False
         factor.ordering = _NATURAL
         lib.cholmod_free_factor(byref(self._handle), self._common)
         self._handle.value = handle.value

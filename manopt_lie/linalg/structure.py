@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
-from ._amd import amd_order
+from ._amd import variable_order
 from ._analyses import STRUCTURES, digest, structure_key
 from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import hessian_pattern
@@ -149,12 +149,29 @@ class BlockStructure:
     def shared(
         cls, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False
     ) -> BlockStructure:
-        """The structure of these arguments (the constructor's) from the process's pool: the one
-        built already for the same dimensions, edge arrays and residual lengths — by any problem:
-        a graph solved again, another cost or other measurements on it — else a new one, which is
-        then kept (at most :data:`~manopt_lie.linalg._analyses.MAX_IDLE` structures;
-        :func:`~manopt_lie.linalg.clear_caches` empties the pool). Its :meth:`pattern_digest` is
-        the pool's key."""
+        """The structure of these inputs from the process's pool: the one built already for the same
+        dimensions, edge arrays and residual lengths (by any problem: a graph solved again, another
+        cost or other measurements on it), else a new one, then kept. At most
+        :data:`~manopt_lie.linalg._analyses.MAX_IDLE` structures are kept;
+        :func:`~manopt_lie.linalg.clear_caches` empties the pool.
+
+        Parameters
+        ----------
+        dims, factors, dense
+            As for the constructor: ``dims`` of shape ``(n_vars,)``, per factor type ``var_ids``
+            of shape ``(m, arity)`` and its ``residual_dim``.
+
+        Returns
+        -------
+        BlockStructure
+            Shared, not copied: nothing changes a built structure. Its :meth:`pattern_digest`
+            is the pool's key.
+
+        Raises
+        ------
+        ValueError
+            As the constructor, for a new structure; nothing is kept then.
+        """
         dims_, pairs = np.asarray(dims), [(np.asarray(ids), int(r)) for ids, r in factors]
         key = structure_key(dims_, pairs, dense)
         return STRUCTURES.get(key, lambda: cls(dims_, pairs, dense=dense, inputs_digest=key))
@@ -256,19 +273,7 @@ class BlockStructure:
         analysis small: on a 10⁴-pose 3-D graph its memory drops from ~70 MB to a few.
         """
         if self._variable_order is None:
-            indptr, rows = self._block_pattern
-            order = amd_order(indptr, rows)
-            if order is None:
-                try:
-                    from cvxopt import amd, matrix, spmatrix
-                except ImportError:
-                    return None
-                cols = np.repeat(np.arange(indptr.size - 1, dtype=np.int64), np.diff(indptr))
-                lower = rows >= cols
-                nv = self.dims.size
-                pattern = spmatrix(1.0, matrix(rows[lower].astype(np.int64)), matrix(cols[lower]), (nv, nv))
-                order = np.asarray(amd.order(pattern, "L"), dtype=np.intp).reshape(-1)
-            self._variable_order = order
+            self._variable_order = variable_order(*self._block_pattern)
         return self._variable_order
 
     def fill_reducing_ordering(self) -> IntArray | None:

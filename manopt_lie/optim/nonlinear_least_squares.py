@@ -80,11 +80,13 @@ def _no_descent(lin: Linearization) -> Status:
 class NonlinearLeastSquares(Optimizer):
     """The shared loop; subclasses implement :meth:`_step`.
 
-    A small pose graph — one SE(2)/SE(3) between factor with native kernels, at most 384
-    unknowns (768 where ``H`` is banded), the default linear solver (and for Levenberg-Marquardt
-    the default damping), no callback, progress table or time limit — runs the iterations of
-    :class:`GaussNewton`, :class:`LevenbergMarquardt` and :class:`~manopt_lie.optim.Dogleg` in
-    compiled code (:mod:`._small_system`), with the same results up to round-off.
+    A small pose graph — one SE(2)/SE(3) between factor with native kernels, at most
+    :data:`~manopt_lie.optim._small_system.DENSE_UNKNOWNS` unknowns
+    (:data:`~manopt_lie.optim._small_system.MAX_UNKNOWNS` where ``H`` is banded), the default
+    linear solver (and for Levenberg-Marquardt the default damping), no callback, progress table
+    or time limit — runs the iterations of :class:`GaussNewton`, :class:`LevenbergMarquardt` and
+    :class:`~manopt_lie.optim.Dogleg` in compiled code (:mod:`._small_system`), with the same
+    results up to round-off.
 
     Parameters
     ----------

@@ -110,6 +110,9 @@ def test_shared_structures_come_from_the_pool():
     assert all(o is not first for o in others) and len(STRUCTURES) == 3
     clear_caches()
     assert BlockStructure.shared([3, 3, 3], [(chain, 3)]) is not first
+    with pytest.raises(ValueError, match="edge 1, slot 1: variable id 3"):  # the constructor's check
+        BlockStructure.shared([3, 3, 3], [(chain + np.array([[0, 0], [0, 1]]), 3)])
+    assert len(STRUCTURES) == 1  # nothing kept for it
 
 
 def test_keys_of_a_copied_pattern_hash_its_coordinates(rng):

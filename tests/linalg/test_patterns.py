@@ -96,6 +96,9 @@ def test_amd_called_directly_orders_as_cvxopt(seed):
                        (dims.size, dims.size))  # fmt: skip
     np.testing.assert_array_equal(_amd.amd_order(indptr, rows), np.asarray(amd.order(pattern, "L")).ravel())
     assert _amd.amd_order(indptr.astype(np.int64), rows.astype(np.int64)) is None  # 32-bit indices only
+    # 64-bit indices: through CVXOPT's interface, the same order.
+    np.testing.assert_array_equal(_amd.variable_order(indptr.astype(np.int64), rows.astype(np.int64)),
+                                  _amd.amd_order(indptr, rows))  # fmt: skip
 
 
 def _factor(S: BlockStructure, supernodal: bool | None) -> _cholmod.Cholmod:
