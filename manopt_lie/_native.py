@@ -38,8 +38,9 @@ from numpy.typing import NDArray
 __all__ = ["Native", "Pinned", "address", "compile_functions", "enabled", "declare", "load", "load_source"]
 
 FloatArray = NDArray[np.float64]
-FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")
-"""Compiler flags: no fused multiply-adds, so the machine code rounds as CasADi's virtual machine does."""
+FLAGS = ("-O2", "-fPIC", "-shared", "-pthread", "-ffp-contract=off")
+"""Compiler flags: no fused multiply-adds, so the machine code rounds as CasADi's virtual machine
+does; POSIX threads (``linalg/patterns.c`` starts one)."""
 
 _LOCK = threading.Lock()
 _LIBRARIES: dict[str, Any] = {}  # library file name → the loaded library (None: it cannot be built)

@@ -10,6 +10,7 @@ be found, :func:`amd_order` returns ``None``, and :func:`variable_order` goes th
 
 from __future__ import annotations
 
+import ctypes
 import functools
 from ctypes import c_int, c_void_p
 from typing import Any
@@ -20,7 +21,7 @@ from numpy.typing import NDArray
 from .._native import address
 from ._cholmod_types import cvxopt_library
 
-__all__ = ["amd_order", "variable_order"]
+__all__ = ["amd_order", "amd_order_address", "variable_order"]
 
 _OK, _OK_BUT_JUMBLED = 0, 1  # amd.h's statuses of success
 
@@ -53,6 +54,14 @@ def _order(lib: Any, indptr: NDArray[np.int32], indices: NDArray[np.int32]) -> N
     order = np.empty(max(n, 1), dtype=np.int32)
     status = lib.amd_order(n, address(indptr), address(indices), address(order), None, None)
     return order[:n].astype(np.intp) if status in (_OK, _OK_BUT_JUMBLED) else None
+
+
+@functools.cache
+def amd_order_address() -> int | None:
+    """The address of the checked ``amd_order`` (for C that calls it, ``patterns.c: early_start``),
+    or ``None``."""
+    lib = _library()
+    return None if lib is None else ctypes.cast(lib.amd_order, c_void_p).value
 
 
 def amd_order(indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger]) -> NDArray[np.intp] | None:

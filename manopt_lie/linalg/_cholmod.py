@@ -73,6 +73,7 @@ from ._cholmod_types import (
     _Sparse,
     cvxopt_library,
 )
+from ._early import Analysis
 from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._triangles import check_diagonal, columns, permuted_block_triangle
@@ -151,13 +152,14 @@ def available() -> bool:
 def cholmod_backend(
     indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
     supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
-    variables: NDArray[np.intp] | None = None,
+    variables: NDArray[np.intp] | None = None, early: Analysis | None = None,
 ) -> Cholmod | _CHOLMOD:
     """CHOLMOD's factorization of the pattern, called directly where it can be, else through CVXOPT.
     With ``blocks``, ``variables`` (the variables' fill-reducing order) stands for ``ordering``:
-    CVXOPT's interface gets it expanded to the coordinates."""
+    CVXOPT's interface gets it expanded to the coordinates. ``early``: what a structure's early
+    analysis made (:class:`Cholmod`)."""
     if indptr.dtype == np.int32 and indices.dtype == np.int32 and available():
-        return Cholmod(indptr, indices, ordering, supernodal, blocks, variables=variables)
+        return Cholmod(indptr, indices, ordering, supernodal, blocks, variables=variables, early=early)
     if ordering is None and blocks is not None and variables is not None:
         ordering = _coordinates(blocks[0], variables)
     return _CHOLMOD(indptr, indices, ordering, supernodal, blocks)
@@ -203,14 +205,15 @@ class Cholmod:
     ``blocks``: the pattern's block form ``(dims, block indptr, block rows)``, from which the
     permuted triangle is built fast (trusted; without it, through SciPy); ``variables``: with
     ``blocks``, the variables' fill-reducing order, which then stands for ``ordering`` (trusted):
-    the analysis runs on the variables' graph (:meth:`_analyze_blocks`). Without both, the
-    pattern is analysed as it is.
+    the analysis runs on the variables' graph (:meth:`_analyze_blocks`), and takes from ``early``
+    (a structure's early analysis, :mod:`~manopt_lie.linalg._early`, where its order is
+    ``variables``) what it made. Without both, the pattern is analysed as it is.
     """
 
     def __init__(
         self, indptr: IndexArray, indices: IndexArray, ordering: NDArray[np.intp] | None = None,
         supernodal: bool | None = None, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
-        *, variables: NDArray[np.intp] | None = None, lib: Any = None,
+        *, variables: NDArray[np.intp] | None = None, early: Analysis | None = None, lib: Any = None,
     ) -> None:
         lib = lib if lib is not None else _library()
         if lib is None:
@@ -229,7 +232,7 @@ class Cholmod:
         self._handle = c_void_p()  # the factor (a cholmod_factor*), freed with the Common
         self._release = weakref.finalize(self, _release, lib, self._common, self._handle)
         if blocks is not None and variables is not None:
-            self._perm, (self._indptr, self._indices, gather) = self._analyze_blocks(indptr, blocks, variables)
+            self._perm, (self._indptr, self._indices, gather) = self._analyze_blocks(indptr, blocks, variables, early)
         else:
             self._perm = self._analyze_pattern(indptr, indices, ordering)
             triangle = _permuted_triangle(indptr, indices, self._perm, not self.supernodal)
@@ -289,7 +292,8 @@ class Cholmod:
         return perm
 
     def _analyze_blocks(self, indptr: IndexArray, blocks: tuple[IndexArray, IndexArray, IndexArray],
-                        order: NDArray[np.intp]) -> tuple[NDArray[np.intp], Triangle]:  # fmt: skip
+                        order: NDArray[np.intp], early: Analysis | None = None
+                        ) -> tuple[NDArray[np.intp], Triangle]:  # fmt: skip
         """Analyse a structure's ``H`` in the variables' ``order`` through the variables' graph
         (``d²`` times fewer entries). Returns ``P`` and the triangle of ``B = P H Pᵀ`` to factor.
 
@@ -309,7 +313,11 @@ class Cholmod:
         block: _Factor | None = None
         counts: NDArray[np.int64] | None = None
         made: tuple[Triangle, NDArray[np.intp]] | None = None
-        found = _patterns.block_symbolic(block_indptr, block_rows, order) if uniform and wanted != _SUPERNODAL else None
+        if early is not None and early.order is not order:
+            early = None  # made for another order
+        found = None
+        if uniform and wanted != _SUPERNODAL:
+            found = early.symbolic if early and early.symbolic else _patterns.block_symbolic(*blocks[1:], order)
         if found is not None:
             variables, counts = found
         else:
@@ -332,7 +340,10 @@ class Cholmod:
             assert source is not None  # a simplicial analysis has its counts
             if self._expand(d, source):
                 self.cost = (float(lnz), float(fl))
-                made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
+                if not supernodal and early and early.symbolic is found and early.triangle:
+                    made = early.triangle  # the upper triangle in the same variables
+                else:
+                    made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
         if made is None:  # B's triangle analysed as it is
             upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
             made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)

@@ -228,7 +228,7 @@ class CholeskySolver:
                 structure = self._structure
                 block_form = (structure.dims, *structure.block_pattern)
                 impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal, block_form,
-                                       structure.variable_ordering())  # fmt: skip
+                                       structure.variable_ordering(), structure._early_analysis())  # fmt: skip
             elif self.backend == "cholmod":
                 impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal)
             else:

@@ -7,7 +7,8 @@
  * permuted_block_triangle builds: the same arrays, entry for entry (tests/linalg/test_patterns.py),
  * in a few passes over the blocks instead of a few dozen NumPy calls over the entries.
  * block_symbolic and expand_supernodes make B's symbolic factor from the variables' (_cholmod.py,
- * Cholmod._analyze_blocks). The caller (manopt_lie/linalg/_patterns.py) sizes every output and
+ * Cholmod._analyze_blocks). early_start runs AMD, block_symbolic and permuted_triangle on a thread of
+ * their own while Python linearizes (_early.py). The caller (manopt_lie/linalg/_patterns.py) sizes every output and
  * uses these only where every index of H fits in 32 bits.
  *
  * Notation (structure.py's): variable v has dimension d_v and owns coordinates o_v ... o_v + d_v - 1;
@@ -15,6 +16,7 @@
  * dimensions of the rows of v's blocks), v's columns start at base_v, and block k starts
  * within_k down each of them: entry (o_w + i, o_v + j) sits at base_v + j L_v + within_k + i.
  */
+#include <pthread.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -363,5 +365,141 @@ int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, 
   for (i64 q = 0; q < nv; ++q) rank[q] = counts[mark[q]]; /* counts in the postorder (rank reused) */
   for (i64 q = 0; q < nv; ++q) variables[q] = order[mark[q]], counts[q] = rank[q];
   free(work);
+  return 0;
+}
+
+/* A new structure's analysis on a thread of its own (_early.py): AMD's order of the variables' graph
+ * (amd: AMD's amd_order, called through its address), the variables' simplicial symbolic
+ * factorization in that order (block_symbolic), and, where CHOLMOD's default choice of kind is
+ * simplicial (fl < supernodal_switch lnz, the coordinates' costs from the blocks' as in
+ * Cholmod._analyze_blocks, every variable of dimension d), the upper triangle of B in the
+ * postordered order (permuted_triangle, size > 0). Each step runs where the one before succeeded;
+ * status: AMD's, block_symbolic's, permuted_triangle's (NOT_RUN: not run). Every array is the
+ * caller's, kept alive until early_join.
+ *
+ * One worker thread per process runs the analyses in the order they were started: made at the
+ * first, it sleeps between them (a thread made per analysis cost its caller 0.06-0.15 ms). A forked
+ * child has no worker and makes its own; the analyses its parent had started are not its to wait
+ * for (early_join says so). */
+#define NOT_RUN 2 /* a status none of the steps returns */
+typedef int (*amd_order_fn)(i32 n, const i32* Ap, const i32* Ai, i32* P, double* Control, double* Info);
+
+typedef struct early_analysis {
+  struct early_analysis* next; /* in the worker's queue */
+  unsigned long forks; /* early_forks where it started */
+  int done;
+  amd_order_fn amd;
+  i64 nv, d, budget, size;
+  double supernodal_switch;
+  const i64* dims;
+  const i32 *h_indptr, *bptr, *brows;
+  i32* amd_order;
+  i64 *order, *variables, *counts, *perm;
+  i32 *indptr, *rows, *gather;
+  i64 status[3];
+} early_analysis;
+
+static void early_run(early_analysis* a) {
+  i64 nv = a->nv, d = a->d;
+  a->status[0] = a->amd((i32)nv, a->bptr, a->brows, a->amd_order, NULL, NULL);
+  if (a->status[0] != 0 && a->status[0] != 1) return; /* AMD_OK, AMD_OK_BUT_JUMBLED */
+  for (i64 k = 0; k < nv; ++k) a->order[k] = a->amd_order[k];
+  a->status[1] = block_symbolic(nv, a->bptr, a->brows, a->order, a->budget, a->variables, a->counts);
+  if (a->status[1] != 0 || a->size <= 0) return;
+  double lnz_b = 0, fl_b = 0; /* sum c and sum c^2 over the variables, then over the coordinates */
+  for (i64 k = 0; k < nv; ++k) lnz_b += (double)a->counts[k], fl_b += (double)a->counts[k] * (double)a->counts[k];
+  double lnz = (double)(d * d) * lnz_b - (double)(nv * d * (d - 1)) / 2;
+  double fl = (double)(d * d * d) * fl_b - (double)(d * d * (d - 1)) * lnz_b + (double)(nv * (d - 1) * d * (2 * d - 1)) / 6;
+  if (fl >= a->supernodal_switch * lnz) return; /* supernodal: its triangle is the lower one, in another order */
+  a->status[2] = permuted_triangle(nv, a->dims, a->h_indptr, a->bptr, a->brows, a->variables, 1, a->size, a->indptr,
+                                   a->rows, a->gather, a->perm);
+}
+
+static pthread_mutex_t early_lock = PTHREAD_MUTEX_INITIALIZER;
+static pthread_cond_t early_queued = PTHREAD_COND_INITIALIZER, early_done = PTHREAD_COND_INITIALIZER;
+static early_analysis *early_head = NULL, *early_tail = NULL;
+static int early_running = 0;           /* a worker runs in this process */
+static unsigned long early_forks = 0;   /* forks from the first process to this one */
+
+static void early_forked(void) { /* pthread_atfork's child: no worker, nothing queued, the lock as new */
+  pthread_mutex_t unlocked = PTHREAD_MUTEX_INITIALIZER;
+  pthread_cond_t fresh = PTHREAD_COND_INITIALIZER;
+  early_lock = unlocked, early_queued = fresh, early_done = fresh;
+  early_head = early_tail = NULL, early_running = 0, ++early_forks;
+}
+
+static void* early_work(void* unused) {
+  (void)unused;
+  pthread_mutex_lock(&early_lock);
+  for (;;) {
+    while (!early_head) pthread_cond_wait(&early_queued, &early_lock);
+    early_analysis* a = early_head;
+    early_head = a->next;
+    if (!early_head) early_tail = NULL;
+    pthread_mutex_unlock(&early_lock);
+    early_run(a);
+    pthread_mutex_lock(&early_lock);
+    a->done = 1;
+    pthread_cond_broadcast(&early_done);
+  }
+  return NULL;
+}
+
+static int early_worker(void) { /* with the lock held: whether a worker runs, made if need be */
+  static int watched = 0; /* the fork handler registered */
+  if (early_running) return 1;
+  if (!watched) watched = pthread_atfork(NULL, NULL, early_forked) == 0;
+  pthread_attr_t attributes;
+  pthread_t worker;
+  if (!watched || pthread_attr_init(&attributes) != 0) return 0;
+  early_running = pthread_attr_setdetachstate(&attributes, PTHREAD_CREATE_DETACHED) == 0 &&
+                  pthread_create(&worker, &attributes, early_work, NULL) == 0;
+  pthread_attr_destroy(&attributes);
+  return early_running;
+}
+
+/* Starts the analysis (on the caller's thread where no worker can be made) and returns its handle,
+ * for early_join; NULL without memory. */
+void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
+                  i64 budget, double supernodal_switch, i64 size, i32* amd_order, i64* order, i64* variables,
+                  i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm) {
+  early_analysis* a = malloc(sizeof(early_analysis));
+  if (!a) return NULL;
+  a->next = NULL, a->done = 0;
+  a->amd = (amd_order_fn)amd;
+  a->nv = nv, a->d = d, a->budget = budget, a->size = size, a->supernodal_switch = supernodal_switch;
+  a->dims = dims, a->h_indptr = h_indptr, a->bptr = bptr, a->brows = brows;
+  a->amd_order = amd_order, a->order = order, a->variables = variables, a->counts = counts;
+  a->indptr = indptr, a->rows = rows, a->gather = gather, a->perm = perm;
+  a->status[0] = a->status[1] = a->status[2] = NOT_RUN;
+  pthread_mutex_lock(&early_lock);
+  a->forks = early_forks;
+  int queued = early_worker();
+  if (queued) {
+    if (early_tail) early_tail->next = a;
+    else early_head = a;
+    early_tail = a;
+    pthread_cond_signal(&early_queued);
+  }
+  pthread_mutex_unlock(&early_lock);
+  if (!queued) early_run(a), a->done = 1;
+  return a;
+}
+
+/* Waits for the analysis, writes its status (3) and frees the handle. Returns 0; -1 in a process
+ * forked from the one that started it (its worker did not come along: the arrays are not to be
+ * read). */
+int early_join(void* handle, i64* status) {
+  early_analysis* a = handle;
+  pthread_mutex_lock(&early_lock);
+  if (a->forks != early_forks) { /* started by the parent */
+    pthread_mutex_unlock(&early_lock);
+    free(a);
+    return -1;
+  }
+  while (!a->done) pthread_cond_wait(&early_done, &early_lock);
+  pthread_mutex_unlock(&early_lock);
+  memcpy(status, a->status, sizeof(a->status));
+  free(a);
   return 0;
 }

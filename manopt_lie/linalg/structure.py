@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ShapeError
 from ._amd import variable_order
 from ._analyses import STRUCTURES, digest, structure_key
+from ._early import Analysis, EarlyAnalysis
 from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import hessian_pattern
 from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
@@ -114,6 +115,7 @@ class BlockStructure:
         self._ordering: IntArray | None = None  # computed at first use
         self._variable_order: IntArray | None = None
         self._digest = None if inputs_digest is None else inputs_digest + b"inputs"
+        self._early: EarlyAnalysis | None = None
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [
@@ -127,6 +129,8 @@ class BlockStructure:
             pairs = zip(made, self._factors, strict=True)
             self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
             self._grad_scatter = [g for _, g in made]
+            # The first solve's ordering and symbolic analysis, on a thread while H is first assembled.
+            self._early = EarlyAnalysis.start(self.dims, self._indptr, *self._block_pattern)
         else:  # NumPy's build: no compiler, 64-bit indices, or scatters made per chunk
             pattern, block_ids, layout = sparse_pattern(self.dims, self.offsets, [f.var_ids for f in self._factors])
             self._block_pattern, self._indptr, self._indices, self._diag_pos = pattern
@@ -273,8 +277,18 @@ class BlockStructure:
         analysis small: on a 10⁴-pose 3-D graph its memory drops from ~70 MB to a few.
         """
         if self._variable_order is None:
-            self._variable_order = variable_order(*self._block_pattern)
+            early = self._early_analysis()
+            if early is not None and early.order is not None:
+                self._variable_order = early.order
+            else:
+                self._variable_order = variable_order(*self._block_pattern)
         return self._variable_order
+
+    def _early_analysis(self) -> Analysis | None:
+        """What the analysis started with the structure made (``_early``; waited for), or ``None``
+        where none was started: the ordering, and for a solver of the variables' order its symbolic
+        analysis and triangle."""
+        return None if self._early is None else self._early.result()
 
     def fill_reducing_ordering(self) -> IntArray | None:
         """A fill-reducing permutation of ``H``'s coordinates: the :meth:`variable_ordering`, each

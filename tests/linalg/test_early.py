@@ -1,0 +1,179 @@
+"""A structure's analysis started on a thread at construction (``linalg._early``, ``patterns.c:
+early_start``): the same order, symbolic factorization and triangle as the analysis makes when asked,
+the same factor and solves; nothing where it should not run; safe from several threads, after a
+fork, and when dropped unread."""
+
+from __future__ import annotations
+
+import multiprocessing
+import threading
+
+import numpy as np
+import pytest
+
+from manopt_lie.linalg import BlockStructure, CholeskySolver, _amd, _cholmod, _early, _patterns, clear_caches
+
+from .helpers import pose_graph, random_factor_graph
+
+pytestmark = [
+    pytest.mark.skipif(_patterns._library() is None, reason="no C compiler here"),
+    pytest.mark.skipif(_amd.amd_order_address() is None, reason="AMD cannot be called directly here"),
+]
+
+
+def chain_with_chords(n: int, d: int, chords: int, rng: np.random.Generator) -> BlockStructure:
+    """A pose-graph-like pattern: a chain of ``n`` variables of dimension ``d`` and random chords."""
+    edges = np.array([(i, i + 1) for i in range(n - 1)] + [tuple(rng.choice(n, 2, replace=False)) for _ in range(chords)])
+    return BlockStructure(np.full(n, d), [(edges, d)])
+
+
+def expected(S: BlockStructure) -> _early.Analysis:
+    """The analysis made when asked, step by step."""
+    order = _amd.variable_order(*S.block_pattern)
+    symbolic = _patterns.block_symbolic(*S.block_pattern, order)
+    assert symbolic is not None
+    triangle = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, symbolic[0], upper=True)
+    return _early.Analysis(order, symbolic, triangle)
+
+
+def assert_same(made: _early.Analysis, wanted: _early.Analysis, triangle: bool = True) -> None:
+    np.testing.assert_array_equal(made.order, wanted.order)
+    assert made.symbolic is not None and wanted.symbolic is not None
+    for a, b in zip(made.symbolic, wanted.symbolic, strict=True):
+        np.testing.assert_array_equal(a, b)
+    if not triangle:
+        assert made.triangle is None
+        return
+    assert made.triangle is not None and wanted.triangle is not None
+    for a, b in zip(made.triangle[0], wanted.triangle[0], strict=True):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(made.triangle[1], wanted.triangle[1])
+
+
+@pytest.mark.parametrize(("d", "n", "chords"), [(3, 300, 40), (6, 200, 30), (2, 5, 0), (1, 1, 0)])
+def test_the_early_analysis_is_the_analysis_made_when_asked(rng, d, n, chords):
+    """Order, postordered variables and their counts, the upper triangle of ``B`` and ``P``: the same
+    arrays as AMD, ``block_symbolic`` and ``permuted_block_triangle`` make when called."""
+    S = chain_with_chords(n, d, chords, rng) if n > 1 else BlockStructure([d], [(np.zeros((1, 1), int), d)])
+    assert S._early is not None
+    made = S._early_analysis()
+    if n == 1:
+        np.testing.assert_array_equal(made.order, [0])
+        return
+    assert_same(made, expected(S))
+    assert S.variable_ordering() is made.order
+    assert S._early_analysis() is made  # joined once
+
+
+def test_a_supernodal_pattern_gets_no_early_triangle(rng):
+    """Where CHOLMOD's default choice is supernodal (flops per entry of ``L`` past its switch), the
+    triangle would be the other one in another order: only the order and the symbolic are made."""
+    n = 60
+    edges = np.array([(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < 0.5])
+    S = BlockStructure(np.full(n, 6), [(edges, 6)])
+    made = S._early_analysis()
+    assert_same(made, expected(S), triangle=False)
+    factor = _cholmod.Cholmod(S.indptr, S.indices, None, None, (S.dims, *S.block_pattern),
+                              variables=S.variable_ordering(), early=made)  # fmt: skip
+    assert factor.supernodal
+
+
+def test_past_the_budget_the_symbolic_and_triangle_are_left_to_the_analysis(monkeypatch, rng):
+    monkeypatch.setattr(_patterns, "SIMPLICIAL_FILL", 0)
+    S = chain_with_chords(80, 3, 20, rng)
+    made = S._early_analysis()
+    np.testing.assert_array_equal(made.order, _amd.variable_order(*S.block_pattern))
+    assert made.symbolic is None and made.triangle is None
+
+
+def test_no_early_analysis_where_it_should_not_run(monkeypatch, rng):
+    """Mixed dimensions, past ``EARLY_ENTRIES``, without AMD or compiled code: none is started, and
+    the structure orders its variables as before."""
+    dims, factors = random_factor_graph(rng, n_vars=30)
+    assert len(set(dims.tolist())) > 1
+    S = BlockStructure(dims, factors)
+    assert S._early is None and S._early_analysis() is None
+    np.testing.assert_array_equal(S.variable_ordering(), _amd.variable_order(*S.block_pattern))
+    monkeypatch.setattr(_early, "EARLY_ENTRIES", 100)
+    assert chain_with_chords(50, 3, 5, rng)._early is None
+    monkeypatch.undo()
+    monkeypatch.setattr(_amd, "amd_order_address", lambda: None)
+    assert chain_with_chords(50, 3, 5, rng)._early is None
+
+
+@pytest.mark.parametrize("supernodal", [None, False, True], ids=["auto", "simplicial", "supernodal"])
+def test_a_solve_with_the_early_analysis_is_the_solve_without(monkeypatch, rng, supernodal):
+    """The same kind, cost, order and solution as a solver whose structure started nothing."""
+    results = []
+    for start in (_early.EarlyAnalysis.start, lambda *args: None):
+        monkeypatch.setattr(_early.EarlyAnalysis, "start", start)
+        clear_caches()
+        S, blocks, residuals = pose_graph(np.random.default_rng(7), n_poses=150, d=3)
+        assert (S._early is not None) == (start is not _early.EarlyAnalysis.start or len(results) == 0)
+        H, g = S.normal_equations(blocks, residuals)
+        solver = CholeskySolver(supernodal=supernodal).bind(S)
+        x = solver(H, -g)
+        impl = solver._impl
+        results.append((x, impl.supernodal, impl.cost, impl.permutation()))
+    clear_caches()
+    (x1, kind1, cost1, perm1), (x2, kind2, cost2, perm2) = results
+    assert kind1 == kind2 and cost1 == cost2
+    np.testing.assert_array_equal(perm1, perm2)
+    np.testing.assert_allclose(x1, x2, rtol=1e-12, atol=1e-14)
+
+
+def test_many_analyses_from_several_threads(rng):
+    """Twenty structures started from four threads at once (one worker runs them in turn): each
+    analysis is its own pattern's."""
+    structures: list[BlockStructure] = []
+    lock = threading.Lock()
+
+    def build(seed: int) -> None:
+        local = np.random.default_rng(seed)
+        made = [chain_with_chords(int(local.integers(20, 120)), 3, 10, local) for _ in range(5)]
+        with lock:
+            structures.extend(made)
+
+    threads = [threading.Thread(target=build, args=(seed,)) for seed in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(structures) == 20
+    for S in structures:
+        assert_same(S._early_analysis(), expected(S))
+
+
+def test_dropped_unread_the_analysis_is_waited_for():
+    """A structure dropped before its analysis is read waits for the thread, which writes into its
+    arrays, before they are freed (under a memory checker this would show as a write after free)."""
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        chain_with_chords(400, 3, 80, rng)  # dropped at once
+    S = chain_with_chords(400, 3, 80, rng)
+    assert_same(S._early_analysis(), expected(S))
+
+
+def _child(S: BlockStructure, queue: multiprocessing.Queue) -> None:
+    """In a forked child: the parent's analysis is not waited for, the child's own is made."""
+    made = S._early_analysis()
+    fresh = chain_with_chords(60, 3, 10, np.random.default_rng(5))
+    queue.put((made.order is None, S.variable_ordering().tolist(), fresh._early_analysis().order.tolist()))
+
+
+@pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork here")
+def test_a_forked_child_makes_its_own_analysis(rng):
+    S = chain_with_chords(5000, 3, 50, rng)  # started, maybe running, when the child is forked
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=_child, args=(S, queue))
+    child.start()
+    parents_unread, order, fresh = queue.get(timeout=60)
+    child.join(timeout=60)
+    assert child.exitcode == 0
+    assert parents_unread  # the thread stayed in the parent
+    np.testing.assert_array_equal(order, _amd.variable_order(*S.block_pattern))
+    other = chain_with_chords(60, 3, 10, np.random.default_rng(5))
+    np.testing.assert_array_equal(fresh, other.variable_ordering())
+    assert_same(S._early_analysis(), expected(S))  # the parent's own, unharmed
