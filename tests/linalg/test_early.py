@@ -23,7 +23,8 @@ pytestmark = [
 
 def chain_with_chords(n: int, d: int, chords: int, rng: np.random.Generator) -> BlockStructure:
     """A pose-graph-like pattern: a chain of ``n`` variables of dimension ``d`` and random chords."""
-    edges = np.array([(i, i + 1) for i in range(n - 1)] + [tuple(rng.choice(n, 2, replace=False)) for _ in range(chords)])
+    chain = [(i, i + 1) for i in range(n - 1)]
+    edges = np.array(chain + [tuple(rng.choice(n, 2, replace=False)) for _ in range(chords)])
     return BlockStructure(np.full(n, d), [(edges, d)])
 
 
