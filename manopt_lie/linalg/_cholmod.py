@@ -326,24 +326,30 @@ class Cholmod:
             variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)
             if not block.is_super:
                 counts = _array(block.ColCount, np.int32, dims.size).astype(np.int64)
+        # B's simplicial factor made early from this symbolic (patterns.c: early_run, the same sums)
+        simplicial = early.simplicial if early and found is not None and found is early.symbolic else None
         if uniform:
-            lnz_b, fl_b = self.cost if counts is None else (float(counts.sum()), float(np.dot(counts, counts)))
-            nv = dims.size  # Σ_j c_j and Σ_j c_j² over the coordinates, c_j = d·c − a (see _expand)
-            lnz = d * d * lnz_b - nv * d * (d - 1) / 2
-            fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
+            if simplicial is not None:
+                lnz, fl = simplicial.cost
+            else:
+                lnz_b, fl_b = self.cost if counts is None else (float(counts.sum()), float(np.dot(counts, counts)))
+                nv = dims.size  # Σ_j c_j and Σ_j c_j² over the coordinates, c_j = d·c − a (see _expand)
+                lnz = d * d * lnz_b - nv * d * (d - 1) / 2
+                fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
             switch = self._settings.supernodal_switch
             supernodal = wanted == _SUPERNODAL or (wanted != _SIMPLICIAL and fl >= switch * lnz)
             if supernodal and (block is None or not block.is_super):
                 block = self._analyze_variables(block_indptr, block_rows, order, _SUPERNODAL, d)
                 variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)  # the supernodes' order
-            source = block if supernodal else counts
-            assert source is not None  # a simplicial analysis has its counts
-            if self._expand(d, source):
-                self.cost = (float(lnz), float(fl))
-                if not supernodal and early and early.symbolic is found and early.triangle:
-                    made = early.triangle  # the upper triangle in the same variables
-                else:
+            if supernodal or simplicial is None:
+                source = block if supernodal else counts
+                assert source is not None  # a simplicial analysis has its counts
+                if self._expand(d, source):
+                    self.cost = (float(lnz), float(fl))
                     made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
+            elif self._expand(d, simplicial.column_counts):
+                self.cost = (float(lnz), float(fl))
+                made = simplicial.triangle, simplicial.perm
         if made is None:  # B's triangle analysed as it is
             upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
             made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
@@ -371,10 +377,11 @@ class Cholmod:
         finally:
             common.supernodal, common.nrelax[:] = wanted, relax
 
-    def _expand(self, d: int, variables_factor: _Factor | NDArray[np.int64]) -> bool:
+    def _expand(self, d: int, variables_factor: _Factor | NDArray[np.int64] | NDArray[np.int32]) -> bool:
         """Make the symbolic factor of ``B`` (natural order) from the variables' one, every variable of
         dimension ``d``: their supernodal factor (CHOLMOD's), or their simplicial one, its column
-        counts in blocks; ``False`` (nothing changed) where an index passes 32 bits.
+        counts in blocks (64-bit) or already expanded (32-bit: ``B``'s, made early); ``False`` (nothing
+        changed) where an index passes 32 bits.
 
         The blocks are dense, so the column of coordinate ``a`` of a variable whose column of ``L``
         holds ``c`` blocks holds ``d·c − a`` entries, below the rows of the variable's own ones.
@@ -393,8 +400,12 @@ class Cholmod:
             if isinstance(variables_factor, _Factor):
                 supernodal, made = True, self._expand_supernodes(variables_factor, factor, d)
             else:
-                counts = _array(factor.ColCount, np.int32, n).reshape(nv, d)
-                np.subtract((d * variables_factor).astype(np.int32)[:, None], np.arange(d, dtype=np.int32), out=counts)
+                counts = _array(factor.ColCount, np.int32, n)
+                if variables_factor.dtype == np.int32:
+                    counts[:] = variables_factor
+                else:
+                    block_counts = (d * variables_factor).astype(np.int32)[:, None]
+                    np.subtract(block_counts, np.arange(d, dtype=np.int32), out=counts.reshape(nv, d))
                 factor.is_ll, supernodal, made = 0, False, True
         except BaseException:
             lib.cholmod_free_factor(byref(handle), self._common)

@@ -1,16 +1,18 @@
 """A new structure's analysis, run on a thread of its own while its first linearization goes on.
 
 The first solve of a pattern orders the variables (AMD), analyses the variables' graph in that
-order (``patterns.c: block_symbolic``) and builds the triangle of ``B = P H Pᵀ`` that CHOLMOD
-factors (``permuted_triangle``). None of it reads the values of ``H``, only the block pattern,
-which :class:`~manopt_lie.linalg.BlockStructure` has as soon as it is built: before the first
-linearization assembles ``H`` and ``g`` (CSAIL: 0.34 ms, against the analysis's 0.2–0.3 ms). So
-the structure starts the three steps in C (``patterns.c: early_start``), on a thread that needs no
-GIL, and the first analysis takes what they made (:meth:`EarlyAnalysis.result`) instead of making
-it. Each step runs where the one before succeeded (a status per step; one that did not run, or
-failed, leaves its result ``None``, and the analysis makes it as before); the triangle is built only where CHOLMOD's
-default choice of kind is simplicial (a supernodal factor's is another triangle, in the
-supernodes' order).
+order (``patterns.c: block_symbolic``), expands that to the symbolic factor of ``B = P H Pᵀ`` and
+builds the triangle of ``B`` that CHOLMOD factors (``permuted_triangle``). None of it reads the
+values of ``H``, only the block pattern, which :class:`~manopt_lie.linalg.BlockStructure` has as
+soon as it is built, before the first linearization assembles ``H`` and ``g`` (CSAIL: 0.3 ms,
+about what the analysis takes). So the structure starts these steps in C (``patterns.c:
+early_start``) on a worker thread, which needs no GIL, and the first analysis takes what they made
+(:meth:`EarlyAnalysis.result`) instead of making it.
+
+Each step runs where the one before succeeded; one that did not run or failed leaves its result
+``None``, and the analysis makes it as before. ``B``'s factor and triangle are made only where
+CHOLMOD's default choice of kind is simplicial: a supernodal factor is CHOLMOD's analysis, its
+triangle the other one, in the supernodes' order.
 
 Only structures of at most :data:`EARLY_ENTRIES` stored entries start one: the set-up weighs in a
 small solve, and a structure that is never factored (a matrix-free solver's) then costs at most a
@@ -28,7 +30,7 @@ from numpy.typing import NDArray
 from . import _amd, _patterns
 from ._cholmod_types import _DEFAULTS
 
-__all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis"]
+__all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
 
 EARLY_ENTRIES = 1 << 20
 """The most stored entries of ``H`` for which a structure starts its analysis early (the triangle is
@@ -48,9 +50,24 @@ class Analysis:
     """AMD's order of the variables (:func:`~manopt_lie.linalg._amd.variable_order`'s)."""
     symbolic: tuple[NDArray[np.intp], NDArray[np.int64]] | None
     """:func:`~manopt_lie.linalg._patterns.block_symbolic` in :attr:`order`."""
-    triangle: tuple[Triangle, NDArray[np.intp]] | None
-    """The upper triangle of ``B`` in the symbolic's postordered variables, and ``P``
-    (:func:`~manopt_lie.linalg._patterns.permuted_block_triangle` with ``upper=True``)."""
+    simplicial: Simplicial | None
+    """``B``'s simplicial factor in the symbolic's postordered variables, where CHOLMOD's default
+    choice of kind is simplicial."""
+
+
+@dataclass(frozen=True)
+class Simplicial:
+    """``B``'s simplicial symbolic factor, from the variables' (``Cholmod._analyze_blocks``)."""
+
+    cost: tuple[float, float]
+    """``(Σ_j c_j, Σ_j c_j²)`` over ``B``'s columns (``Cholmod.cost``)."""
+    column_counts: Int32
+    """The entries ``c_j`` of each column of ``L`` (what ``Cholmod._expand`` writes)."""
+    triangle: Triangle
+    """The upper triangle of ``B`` (:func:`~manopt_lie.linalg._patterns.permuted_block_triangle`,
+    ``upper=True``)."""
+    perm: NDArray[np.intp]
+    """``P``: the coordinate of ``H`` of each of ``B``'s."""
 
 
 _NOTHING = Analysis(None, None, None)
@@ -78,17 +95,20 @@ class EarlyAnalysis:
         nv, n = dims.size, indptr.size - 1
         size = (int(indptr[-1]) + n) // 2  # the triangle, its diagonal included
         # What the thread reads and writes, kept until it is joined: two buffers, cut into the arrays.
-        wide, narrow = np.empty(4 * nv + n + 3, dtype=np.int64), np.empty(nv + n + 1 + 2 * size, dtype=np.int32)
+        wide, narrow = np.empty(4 * nv + n + 3, dtype=np.int64), np.empty(nv + 2 * n + 1 + 2 * size, dtype=np.int32)
         self._dims, self._outputs = wide[:nv], (wide[nv : 2 * nv], wide[2 * nv : 3 * nv], wide[3 * nv : 4 * nv])
         self._perm, self._status = wide[4 * nv : 4 * nv + n], wide[4 * nv + n :]
-        self._order32, self._triangle = narrow[:nv], (narrow[nv : nv + n + 1], *narrow[nv + n + 1 :].reshape(2, size))
+        self._order32, self._columns = narrow[:nv], narrow[nv : nv + n]
+        self._triangle = (narrow[nv + n : nv + 2 * n + 1], *narrow[nv + 2 * n + 1 :].reshape(2, size))
+        self._cost = np.empty(2)
         self._dims[:] = dims
         self._inputs = (indptr, block_indptr, block_rows)
         at = _patterns._at
         handle = library.early_start(
             _amd.amd_order_address(), nv, int(dims[0]), at(self._dims), *(at(a) for a in self._inputs),
             _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at(self._order32),
-            *(at(a) for a in self._outputs), *(at(a) for a in self._triangle), at(self._perm),
+            *(at(a) for a in self._outputs), *(at(a) for a in self._triangle), at(self._perm), at(self._columns),
+            at(self._cost),
         )  # fmt: skip
         if not handle:
             raise MemoryError("patterns.c: no memory to start the analysis")
@@ -133,8 +153,9 @@ class EarlyAnalysis:
         if amd not in _AMD_OK:
             return _NOTHING
         order, variables, counts = self._outputs
-        return Analysis(
-            order.astype(np.intp, copy=False),
-            (variables.astype(np.intp, copy=False), counts) if symbolic == 0 else None,
-            (self._triangle, self._perm.astype(np.intp, copy=False)) if triangle == 0 else None,
-        )
+        made = None
+        if triangle == 0:
+            cost = (float(self._cost[0]), float(self._cost[1]))
+            made = Simplicial(cost, self._columns, self._triangle, self._perm.astype(np.intp, copy=False))
+        symbolic_ = (variables.astype(np.intp, copy=False), counts) if symbolic == 0 else None
+        return Analysis(order.astype(np.intp, copy=False), symbolic_, made)

@@ -47,7 +47,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
-    "early_start": (_P, [_P, _I, _I, _P, _P, _P, _P, _I, ctypes.c_double, _I, _P, _P, _P, _P, _P, _P, _P, _P]),
+    "early_start": (_P, [_P, _I, _I, _P, _P, _P, _P, _I, ctypes.c_double, _I, *[_P] * 10]),
     "early_join": (ctypes.c_int, [_P, _P]),
 }
 

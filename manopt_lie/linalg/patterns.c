@@ -372,8 +372,9 @@ int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, 
  * (amd: AMD's amd_order, called through its address), the variables' simplicial symbolic
  * factorization in that order (block_symbolic), and, where CHOLMOD's default choice of kind is
  * simplicial (fl < supernodal_switch lnz, the coordinates' costs from the blocks' as in
- * Cholmod._analyze_blocks, every variable of dimension d), the upper triangle of B in the
- * postordered order (permuted_triangle, size > 0). Each step runs where the one before succeeded;
+ * Cholmod._analyze_blocks, every variable of dimension d), B's simplicial symbolic factor: its cost
+ * (lnz, fl), its column counts (colcount: n) and the upper triangle of B in the postordered order
+ * (permuted_triangle, size > 0). Each step runs where the one before succeeded;
  * status: AMD's, block_symbolic's, permuted_triangle's (NOT_RUN: not run). Every array is the
  * caller's, kept alive until early_join.
  *
@@ -395,7 +396,8 @@ typedef struct early_analysis {
   const i32 *h_indptr, *bptr, *brows;
   i32* amd_order;
   i64 *order, *variables, *counts, *perm;
-  i32 *indptr, *rows, *gather;
+  i32 *indptr, *rows, *gather, *colcount;
+  double* cost;
   i64 status[3];
 } early_analysis;
 
@@ -411,6 +413,9 @@ static void early_run(early_analysis* a) {
   double lnz = (double)(d * d) * lnz_b - (double)(nv * d * (d - 1)) / 2;
   double fl = (double)(d * d * d) * fl_b - (double)(d * d * (d - 1)) * lnz_b + (double)(nv * (d - 1) * d * (2 * d - 1)) / 6;
   if (fl >= a->supernodal_switch * lnz) return; /* supernodal: its triangle is the lower one, in another order */
+  a->cost[0] = lnz, a->cost[1] = fl;
+  for (i64 c = 0; c < nv; ++c) /* column j of variable c's d holds d counts[c] - j rows (Cholmod._expand) */
+    for (i64 j = 0; j < d; ++j) a->colcount[c * d + j] = (i32)(d * a->counts[c] - j);
   a->status[2] = permuted_triangle(nv, a->dims, a->h_indptr, a->bptr, a->brows, a->variables, 1, a->size, a->indptr,
                                    a->rows, a->gather, a->perm);
 }
@@ -462,7 +467,7 @@ static int early_worker(void) { /* with the lock held: whether a worker runs, ma
  * for early_join; NULL without memory. */
 void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
                   i64 budget, double supernodal_switch, i64 size, i32* amd_order, i64* order, i64* variables,
-                  i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm) {
+                  i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm, i32* colcount, double* cost) {
   early_analysis* a = malloc(sizeof(early_analysis));
   if (!a) return NULL;
   a->next = NULL, a->done = 0;
@@ -470,7 +475,7 @@ void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr
   a->nv = nv, a->d = d, a->budget = budget, a->size = size, a->supernodal_switch = supernodal_switch;
   a->dims = dims, a->h_indptr = h_indptr, a->bptr = bptr, a->brows = brows;
   a->amd_order = amd_order, a->order = order, a->variables = variables, a->counts = counts;
-  a->indptr = indptr, a->rows = rows, a->gather = gather, a->perm = perm;
+  a->indptr = indptr, a->rows = rows, a->gather = gather, a->perm = perm, a->colcount = colcount, a->cost = cost;
   a->status[0] = a->status[1] = a->status[2] = NOT_RUN;
   pthread_mutex_lock(&early_lock);
   a->forks = early_forks;

@@ -29,33 +29,44 @@ def chain_with_chords(n: int, d: int, chords: int, rng: np.random.Generator) -> 
 
 
 def expected(S: BlockStructure) -> _early.Analysis:
-    """The analysis made when asked, step by step."""
+    """The analysis made when asked, step by step: AMD, the variables' symbolic factorization, and
+    ``B``'s simplicial factor as ``Cholmod._analyze_blocks`` and ``_expand`` make it."""
     order = _amd.variable_order(*S.block_pattern)
     symbolic = _patterns.block_symbolic(*S.block_pattern, order)
     assert symbolic is not None
-    triangle = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, symbolic[0], upper=True)
-    return _early.Analysis(order, symbolic, triangle)
+    variables, counts = symbolic
+    d, nv = int(S.dims[0]), S.dims.size
+    lnz_b, fl_b = float(counts.sum()), float(np.dot(counts, counts))
+    lnz = d * d * lnz_b - nv * d * (d - 1) / 2
+    fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
+    columns = (d * counts[:, None] - np.arange(d)).astype(np.int32).ravel()
+    made = _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, variables, upper=True)
+    assert made is not None
+    return _early.Analysis(order, symbolic, _early.Simplicial((lnz, fl), columns, *made))
 
 
-def assert_same(made: _early.Analysis, wanted: _early.Analysis, triangle: bool = True) -> None:
+def assert_same(made: _early.Analysis, wanted: _early.Analysis, simplicial: bool = True) -> None:
     np.testing.assert_array_equal(made.order, wanted.order)
     assert made.symbolic is not None and wanted.symbolic is not None
     for a, b in zip(made.symbolic, wanted.symbolic, strict=True):
         np.testing.assert_array_equal(a, b)
-    if not triangle:
-        assert made.triangle is None
+    if not simplicial:
+        assert made.simplicial is None
         return
-    assert made.triangle is not None and wanted.triangle is not None
-    for a, b in zip(made.triangle[0], wanted.triangle[0], strict=True):
+    assert made.simplicial is not None and wanted.simplicial is not None
+    assert made.simplicial.cost == wanted.simplicial.cost  # the same sums in the same order: bit for bit
+    pairs = [(made.simplicial.column_counts, wanted.simplicial.column_counts)]
+    pairs += zip(made.simplicial.triangle, wanted.simplicial.triangle, strict=True)
+    for a, b in pairs:
         assert a.dtype == b.dtype
         np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(made.triangle[1], wanted.triangle[1])
+    np.testing.assert_array_equal(made.simplicial.perm, wanted.simplicial.perm)
 
 
 @pytest.mark.parametrize(("d", "n", "chords"), [(3, 300, 40), (6, 200, 30), (2, 5, 0), (1, 1, 0)])
 def test_the_early_analysis_is_the_analysis_made_when_asked(rng, d, n, chords):
-    """Order, postordered variables and their counts, the upper triangle of ``B`` and ``P``: the same
-    arrays as AMD, ``block_symbolic`` and ``permuted_block_triangle`` make when called."""
+    """Order, postordered variables and their counts, ``B``'s cost and column counts, its upper
+    triangle and ``P``: the same numbers as the analysis makes when asked."""
     S = chain_with_chords(n, d, chords, rng) if n > 1 else BlockStructure([d], [(np.zeros((1, 1), int), d)])
     assert S._early is not None
     made = S._early_analysis()
@@ -67,14 +78,15 @@ def test_the_early_analysis_is_the_analysis_made_when_asked(rng, d, n, chords):
     assert S._early_analysis() is made  # joined once
 
 
-def test_a_supernodal_pattern_gets_no_early_triangle(rng):
-    """Where CHOLMOD's default choice is supernodal (flops per entry of ``L`` past its switch), the
-    triangle would be the other one in another order: only the order and the symbolic are made."""
+def test_a_supernodal_pattern_gets_no_early_simplicial_factor(rng):
+    """Where CHOLMOD's default choice is supernodal (flops per entry of ``L`` past its switch), ``B``'s
+    factor is CHOLMOD's and its triangle the other one in another order: only the order and the
+    variables' symbolic are made."""
     n = 60
     edges = np.array([(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < 0.5])
     S = BlockStructure(np.full(n, 6), [(edges, 6)])
     made = S._early_analysis()
-    assert_same(made, expected(S), triangle=False)
+    assert_same(made, expected(S), simplicial=False)
     factor = _cholmod.Cholmod(S.indptr, S.indices, None, None, (S.dims, *S.block_pattern),
                               variables=S.variable_ordering(), early=made)  # fmt: skip
     assert factor.supernodal
@@ -85,7 +97,7 @@ def test_past_the_budget_the_symbolic_and_triangle_are_left_to_the_analysis(monk
     S = chain_with_chords(80, 3, 20, rng)
     made = S._early_analysis()
     np.testing.assert_array_equal(made.order, _amd.variable_order(*S.block_pattern))
-    assert made.symbolic is None and made.triangle is None
+    assert made.symbolic is None and made.simplicial is None
 
 
 def test_no_early_analysis_where_it_should_not_run(monkeypatch, rng):
