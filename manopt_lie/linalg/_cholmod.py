@@ -341,15 +341,12 @@ class Cholmod:
             if supernodal and (block is None or not block.is_super):
                 block = self._analyze_variables(block_indptr, block_rows, order, _SUPERNODAL, d)
                 variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)  # the supernodes' order
-            if supernodal or simplicial is None:
-                source = block if supernodal else counts
-                assert source is not None  # a simplicial analysis has its counts
-                if self._expand(d, source):
-                    self.cost = (float(lnz), float(fl))
-                    made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
-            elif self._expand(d, simplicial.column_counts):
+            early_made = None if supernodal or simplicial is None else (simplicial.triangle, simplicial.perm)
+            source = block if supernodal else counts if simplicial is None else simplicial.column_counts
+            assert source is not None  # a simplicial analysis has its counts
+            if self._expand(d, source):
                 self.cost = (float(lnz), float(fl))
-                made = simplicial.triangle, simplicial.perm
+                made = early_made or _block_triangle(indptr, dims, block_indptr, block_rows, variables, not supernodal)
         if made is None:  # B's triangle analysed as it is
             upper = wanted == _SIMPLICIAL  # the triangle each kind factors in place in the natural order
             made = _block_triangle(indptr, dims, block_indptr, block_rows, variables, upper)
