@@ -33,8 +33,8 @@ from ._cholmod_types import _DEFAULTS
 __all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
 
 EARLY_ENTRIES = 1 << 20
-"""The most stored entries of ``H`` for which a structure starts its analysis early (the triangle is
-half as many: at most 8 MB of indices)."""
+"""The most stored entries of ``H`` for which a structure starts its analysis early (the triangle's rows
+and their positions in ``H.data``, half as many each: at most 4 MB of 32-bit indices)."""
 
 _AMD_OK = (0, 1)  # amd.h: AMD_OK, AMD_OK_BUT_JUMBLED
 
@@ -104,6 +104,7 @@ class EarlyAnalysis:
         self._dims[:] = dims
         self._inputs = (indptr, block_indptr, block_rows)
         at = _patterns._at
+        self._status_at = at(self._status)  # for __del__, also at exit, when module globals may be gone
         handle = library.early_start(
             _amd.amd_order_address(), nv, int(dims[0]), at(self._dims), *(at(a) for a in self._inputs),
             _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at(self._order32),
@@ -136,7 +137,7 @@ class EarlyAnalysis:
         """Wait for the thread (once): whether its statuses were written (not in a forked process, where
         the thread stayed in the parent). Until then, this object keeps every array the thread touches."""
         handle, self._handle = self._handle, None
-        return handle is not None and self._library.early_join(handle, _patterns._at(self._status)) == 0
+        return handle is not None and self._library.early_join(handle, self._status_at) == 0
 
     def __del__(self) -> None:
         self._join()  # never free what the thread may still write
