@@ -7,9 +7,9 @@
  * permuted_block_triangle builds: the same arrays, entry for entry (tests/linalg/test_patterns.py),
  * in a few passes over the blocks instead of a few dozen NumPy calls over the entries.
  * block_symbolic and expand_supernodes make B's symbolic factor from the variables' (_cholmod.py,
- * Cholmod._analyze_blocks). early_start runs AMD, block_symbolic and permuted_triangle on a thread of
- * their own while Python linearizes (_early.py). The caller (manopt_lie/linalg/_patterns.py) sizes every output and
- * uses these only where every index of H fits in 32 bits.
+ * Cholmod._analyze_blocks). early_start runs AMD, block_symbolic and permuted_triangle on a worker
+ * thread while Python linearizes (_early.py). The callers (manopt_lie/linalg/_patterns.py,
+ * _early.py) size every output and use these only where every index of H fits in 32 bits.
  *
  * Notation (structure.py's): variable v has dimension d_v and owns coordinates o_v ... o_v + d_v - 1;
  * block k = (w, v) holds the rows of w in the columns of v; each column of v has length L_v (the
@@ -368,7 +368,7 @@ int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, 
   return 0;
 }
 
-/* A new structure's analysis on a thread of its own (_early.py): AMD's order of the variables' graph
+/* A new structure's analysis on a worker thread (_early.py): AMD's order of the variables' graph
  * (amd: AMD's amd_order, called through its address), the variables' simplicial symbolic
  * factorization in that order (block_symbolic), and, where CHOLMOD's default choice of kind is
  * simplicial (fl < supernodal_switch lnz, the coordinates' costs from the blocks' as in
