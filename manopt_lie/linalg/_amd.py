@@ -23,7 +23,7 @@ from ._cholmod_types import cvxopt_library
 
 __all__ = ["amd_order", "amd_order_address", "variable_order"]
 
-_OK, _OK_BUT_JUMBLED = 0, 1  # amd.h's statuses of success
+SUCCESS = (0, 1)  # amd.h's statuses of success: AMD_OK, AMD_OK_BUT_JUMBLED
 
 
 @functools.cache
@@ -53,7 +53,7 @@ def _order(lib: Any, indptr: NDArray[np.int32], indices: NDArray[np.int32]) -> N
     n = indptr.size - 1
     order = np.empty(max(n, 1), dtype=np.int32)
     status = lib.amd_order(n, address(indptr), address(indices), address(order), None, None)
-    return order[:n].astype(np.intp) if status in (_OK, _OK_BUT_JUMBLED) else None
+    return order[:n].astype(np.intp) if status in SUCCESS else None
 
 
 @functools.cache

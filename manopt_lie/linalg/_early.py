@@ -29,17 +29,13 @@ from numpy.typing import NDArray
 
 from . import _amd, _patterns
 from ._cholmod_types import _DEFAULTS
+from ._patterns import Int32, Triangle
 
 __all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
 
 EARLY_ENTRIES = 1 << 20
 """The most stored entries of ``H`` for which a structure starts its analysis early (the triangle's rows
 and their positions in ``H.data``, half as many each: at most 4 MB of 32-bit indices)."""
-
-_AMD_OK = (0, 1)  # amd.h: AMD_OK, AMD_OK_BUT_JUMBLED
-
-Int32 = NDArray[np.int32]
-Triangle = tuple[Int32, Int32, Int32]
 
 
 @dataclass(frozen=True)
@@ -151,7 +147,7 @@ class EarlyAnalysis:
 
     def _read(self) -> Analysis:
         amd, symbolic, triangle = (int(s) for s in self._status)
-        if amd not in _AMD_OK:
+        if amd not in _amd.SUCCESS:
             return _NOTHING
         order, variables, counts = self._outputs
         made = None

@@ -36,6 +36,7 @@ the variables' analysis to CHOLMOD: a factor that fills in more is a supernodal 
 Int32 = NDArray[np.int32]
 INT32_MAX = np.iinfo(np.int32).max
 Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int32]]]
+Triangle = tuple[Int32, Int32, Int32]  # a permuted triangle's indptr, rows, and positions in H.data
 
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
@@ -112,7 +113,7 @@ def _int32(*arrays: NDArray[np.signedinteger]) -> bool:
 def permuted_block_triangle(
     indptr: NDArray[np.signedinteger], dims: NDArray[np.signedinteger], block_indptr: NDArray[np.signedinteger],
     block_rows: NDArray[np.signedinteger], order: NDArray[np.intp], upper: bool = False,
-) -> tuple[tuple[Int32, Int32, Int32], NDArray[np.intp]] | None:
+) -> tuple[Triangle, NDArray[np.intp]] | None:
     """:func:`~manopt_lie.linalg._triangles.permuted_block_triangle` (the same arrays) and ``P`` as
     the coordinates of ``H`` in ``B``'s order (``_factors.coordinates`` of ``order``), for a 32-bit
     ``H`` and block pattern; else ``None``."""
