@@ -90,22 +90,20 @@ class EarlyAnalysis:
         self._library = library = _patterns._library()  # found by start(), with AMD
         nv, n = dims.size, indptr.size - 1
         size = (int(indptr[-1]) + n) // 2  # the triangle, its diagonal included
-        # What the thread reads and writes, kept until it is joined: two buffers, cut into the arrays.
-        wide, narrow = np.empty(4 * nv + n + 3, dtype=np.int64), np.empty(nv + 2 * n + 1 + 2 * size, dtype=np.int32)
-        self._dims, self._outputs = wide[:nv], (wide[nv : 2 * nv], wide[2 * nv : 3 * nv], wide[3 * nv : 4 * nv])
-        self._perm, self._status = wide[4 * nv : 4 * nv + n], wide[4 * nv + n :]
-        self._order32, self._columns = narrow[:nv], narrow[nv : nv + n]
-        self._triangle = (narrow[nv + n : nv + 2 * n + 1], *narrow[nv + 2 * n + 1 :].reshape(2, size))
-        self._cost = np.empty(2)
+        # What the thread reads and writes, kept until it is joined: cut from two buffers.
+        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, nv, n, 3, 2])
+        narrow, at_narrow = _patterns.carve(np.int32, [nv, n, n + 1, size, size])
+        self._dims, *self._outputs, self._perm, self._status, cost = wide
         self._dims[:] = dims
+        self._cost = cost.view(np.float64)  # (lnz, fl)
+        self._order32, self._columns, *triangle = narrow
+        self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
         self._inputs = (indptr, block_indptr, block_rows)
-        at = _patterns._at
-        self._status_at = at(self._status)  # for __del__, also at exit, when module globals may be gone
+        self._status_at = at_wide[5]  # for __del__, also at exit, when module globals may be gone
         handle = library.early_start(
-            _amd.amd_order_address(), nv, int(dims[0]), at(self._dims), *(at(a) for a in self._inputs),
-            _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at(self._order32),
-            *(at(a) for a in self._outputs), *(at(a) for a in self._triangle), at(self._perm), at(self._columns),
-            at(self._cost),
+            _amd.amd_order_address(), nv, int(dims[0]), at_wide[0], *(_patterns._at(a) for a in self._inputs),
+            _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at_narrow[0],
+            *at_wide[1:4], *at_narrow[2:], at_wide[4], at_narrow[1], at_wide[6],
         )  # fmt: skip
         if not handle:
             raise MemoryError("patterns.c: no memory to start the analysis")

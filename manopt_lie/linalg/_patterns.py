@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import itertools
 from collections.abc import Sequence
 from typing import Any
 
@@ -41,10 +42,7 @@ Triangle = tuple[Int32, Int32, Int32]  # a permuted triangle's indptr, rows, and
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
-    "block_pattern": (_I, [_I, _I, _P, _P, _P, _P, _P, _P]),
-    "layout": (_I, [_I, _P, _P, _P, _P, _P, _P]),
-    "expand_pattern": (None, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
-    "factor_scatter": (None, [_I, _I, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
+    "build_structure": (ctypes.c_int, [_I, _I, *[_P] * 10, _I, *[_P] * 4]),
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
@@ -66,6 +64,15 @@ def _pointers(arrays: Sequence[np.ndarray]) -> Any:
     return (ctypes.c_void_p * len(arrays))(*(_at(a) for a in arrays))
 
 
+def carve(dtype: type[np.number], sizes: Sequence[int]) -> tuple[list[NDArray[Any]], list[int]]:
+    """Arrays of these sizes cut from one new buffer, and their addresses: one allocation and one
+    address taken, not one per array (each costs ~1 µs, a dozen of them a tenth of CSAIL's set-up)."""
+    starts = list(itertools.accumulate(sizes, initial=0))
+    buffer = np.empty(starts[-1], dtype=dtype)
+    base, itemsize = _at(buffer) if starts[-1] else 0, buffer.itemsize
+    return [buffer[a:b] for a, b in itertools.pairwise(starts)], [base + itemsize * a for a in starts[:-1]]
+
+
 def hessian_pattern(
     dims: NDArray[np.intp], offsets: NDArray[np.intp], factors: Sequence[FactorIndex]
 ) -> Pattern | None:
@@ -74,36 +81,41 @@ def hessian_pattern(
     positions) and into ``g`` (every edge's ``W`` coordinates), all 32-bit; or ``None``."""
     library = _library()
     n = int(offsets[-1])
-    if library is None or n >= INT32_MAX or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors):
+    # H's entries where no two edges join the same variables: the diagonal blocks, and each edge's
+    # blocks off the diagonal (W² less the slots' own d²); fewer where some do.
+    room = int(np.dot(dims, dims)) + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
+    if (
+        library is None or max(n, room) >= INT32_MAX
+        or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors)
+    ):  # fmt: skip
         return None
-    nv = dims.size
-    dims64, offsets64 = (np.ascontiguousarray(a, dtype=np.int64) for a in (dims, offsets))
+    nv, k = dims.size, len(factors)
     ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
     arities = [a.shape[1] for a in ids]
-    arity, m = np.array(arities, dtype=np.int64), np.array([f.m for f in factors], dtype=np.int64)
-    block_ptr = np.empty(nv + 1, dtype=np.int32)
-    block_rows = np.empty(nv + sum(f.m * a * a for f, a in zip(factors, arities, strict=True)), dtype=np.int32)
-    blocks = [np.empty(f.m * a * a, dtype=np.int32) for f, a in zip(factors, arities, strict=True)]
-    nb = library.block_pattern(nv, len(ids), _at(m), _at(arity), _pointers(ids), _at(block_ptr), _at(block_rows),
-                               _pointers(blocks))  # fmt: skip
-    if nb < 0:
-        raise MemoryError("patterns.c: no memory for the block pattern")
-    block_rows = block_rows[:nb].copy()  # not the candidates' room
-    L, base, within = np.empty(nv, dtype=np.int64), np.empty(nv + 1, dtype=np.int64), np.empty(nb, dtype=np.int32)
-    nnz = library.layout(nv, _at(dims64), _at(block_ptr), _at(block_rows), _at(L), _at(base), _at(within))
-    if nnz >= INT32_MAX:
-        return None
-    indptr, indices, diagonal = np.empty(n + 1, np.int32), np.empty(nnz, np.int32), np.empty(n, np.int32)
-    library.expand_pattern(nv, _at(dims64), _at(offsets64), _at(block_ptr), _at(block_rows), _at(L), _at(base),
-                           _at(indptr), _at(indices), _at(diagonal))  # fmt: skip
-    scatters = []
-    for f, a, b in zip(factors, ids, blocks, strict=True):
-        slot_dims = np.array(f.slot_dims, dtype=np.int64)
-        positions, columns = np.empty(f.m * f.width**2, np.int32), np.empty(f.m * f.width, np.int32)
-        library.factor_scatter(f.m, a.shape[1], _at(slot_dims), _at(a), _at(b), _at(offsets64), _at(L), _at(base),
-                               _at(within), _at(positions), _at(columns))  # fmt: skip
-        scatters.append((positions, columns))
-    return (block_ptr, block_rows), indptr, indices, diagonal, scatters
+    # Inputs: m, arity and the slots' dimensions of every factor; then the outputs nb and nnz.
+    counts = np.array([*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims), 0, 0], np.int64)
+    at_counts = _at(counts)
+    candidates = np.empty(nv + sum(f.m * a * a for f, a in zip(factors, arities, strict=True)), dtype=np.int32)
+    # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
+    # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
+    block_ptr, indptr, indices = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32), np.empty(room, np.int32)
+    sizes = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
+    (diagonal, *scatters), at = carve(np.int32, sizes)
+    status = library.build_structure(
+        nv, k, _at(np.ascontiguousarray(dims, dtype=np.int64)), _at(np.ascontiguousarray(offsets, dtype=np.int64)),
+        at_counts, at_counts + 8 * k, at_counts + 16 * k, _pointers(ids), _at(block_ptr), _at(candidates),
+        _at(indptr), _at(indices), room, at[0], (ctypes.c_void_p * k)(*at[1 : 1 + k]),
+        (ctypes.c_void_p * k)(*at[1 + k :]), at_counts + 8 * (counts.size - 2),
+    )  # fmt: skip
+    if status == -1:
+        raise MemoryError("patterns.c: no memory for the structure")
+    if status != 0:  # the room bounds every pattern of these edges
+        raise RuntimeError("patterns.c: H holds more entries than its edges can make")
+    nb, nnz = (int(c) for c in counts[-2:])
+    block_rows = candidates[:nb].copy()  # not the candidates' room
+    if nnz < room:  # edges that join the same variables
+        indices = indices[:nnz].copy()
+    return (block_ptr, block_rows), indptr, indices, diagonal, list(zip(scatters[:k], scatters[k:], strict=True))
 
 
 def _int32(*arrays: NDArray[np.signedinteger]) -> bool:

@@ -48,7 +48,7 @@ static void sort(i64* a, i64 n) {
  * checks that H's order fits). Each column's candidates are
  * gathered with where their block goes; the distinct rows are told apart by a mark per row and
  * only they are sorted. Returns nb, -1 without memory. */
-i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i32* bptr,
+static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i32* bptr,
                   i32* brows, i32* const* blocks) {
   i64 candidates = nv;
   for (i64 f = 0; f < n_factors; ++f) candidates += m[f] * arity[f] * arity[f];
@@ -105,7 +105,7 @@ i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i
 }
 
 /* The layout of H.data: L (nv), base (nv + 1) and within (nb). Returns nnz = base[nv]. */
-i64 layout(i64 nv, const i64* dims, const i32* bptr, const i32* brows, i64* L, i64* base, i32* within) {
+static i64 layout(i64 nv, const i64* dims, const i32* bptr, const i32* brows, i64* L, i64* base, i32* within) {
   base[0] = 0;
   for (i64 v = 0; v < nv; ++v) {
     i64 length = 0;
@@ -122,7 +122,7 @@ i64 layout(i64 nv, const i64* dims, const i32* bptr, const i32* brows, i64* L, i
 /* H's scalar CSC pattern from the blocks and the layout: indptr (n + 1), indices (nnz) and the
  * position of every diagonal entry (n). Each column of v lists the rows of v's blocks in order:
  * the first one is written, the others (the same rows) copied from it. */
-void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i32* bptr, const i32* brows,
+static void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i32* bptr, const i32* brows,
                     const i64* L, const i64* base, i32* indptr, i32* indices, i32* diagonal) {
   for (i64 v = 0; v < nv; ++v) {
     i64 at = base[v], diagonal_at = 0;
@@ -144,29 +144,85 @@ void expand_pattern(i64 nv, const i64* dims, const i64* offsets, const i32* bptr
 /* One factor type's scatters: where entry [p, q] of every edge's A_e^T A_e goes in H.data (m W^2,
  * row p in slot t at coordinate j of its variable b: column o_b + j, which starts at
  * base_b + j L_b; column q in slot s at coordinate i: row i of block[t, e, s] in it) and the
- * coordinate of every column of A_e (m W). */
-void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, const i32* blocks,
-                    const i64* offsets, const i64* L, const i64* base, const i32* within, i32* positions,
-                    i32* columns) {
+ * coordinate of every column of A_e (m W). With d > 0 every slot has dimension d, a constant where
+ * factor_scatter calls it, so that the short loops over coordinates unroll (CSAIL: 2x faster). */
+static inline __attribute__((always_inline)) void scatter_edges(i64 m, i64 arity, const i64* slot_dims, i64 d,
+                                                                const i64* ids, const i32* blocks,
+                                                                const i64* offsets, const i64* L, const i64* base,
+                                                                const i32* within, i32* positions, i32* columns) {
   i64 width = 0;
-  for (i64 s = 0; s < arity; ++s) width += slot_dims[s];
+  for (i64 s = 0; s < arity; ++s) width += d ? d : slot_dims[s];
   for (i64 e = 0; e < m; ++e) {
     const i64* edge = ids + e * arity;
     i32* column = columns + e * width;
     for (i64 s = 0; s < arity; ++s)
-      for (i64 i = 0; i < slot_dims[s]; ++i) *column++ = (i32)(offsets[edge[s]] + i);
+      for (i64 i = 0, ds = d ? d : slot_dims[s]; i < ds; ++i) *column++ = (i32)(offsets[edge[s]] + i);
     i32* out = positions + e * width * width;
     for (i64 t = 0; t < arity; ++t) {
       i64 b = edge[t];
-      for (i64 j = 0; j < slot_dims[t]; ++j) {
+      const i32* block = blocks + (t * m + e) * arity;
+      for (i64 j = 0, dt = d ? d : slot_dims[t]; j < dt; ++j) {
         i64 row = base[b] + j * L[b];
         for (i64 s = 0; s < arity; ++s) {
-          i64 at = row + within[blocks[(t * m + e) * arity + s]];
-          for (i64 i = 0; i < slot_dims[s]; ++i) *out++ = (i32)(at + i);
+          i64 at = row + within[block[s]];
+          for (i64 i = 0, ds = d ? d : slot_dims[s]; i < ds; ++i) *out++ = (i32)(at + i);
         }
       }
     }
   }
+}
+
+static __attribute__((noinline)) void scatter_any(i64 m, i64 arity, const i64* slot_dims, const i64* ids,
+                                                  const i32* blocks, const i64* offsets, const i64* L,
+                                                  const i64* base, const i32* within, i32* positions, i32* columns) {
+  scatter_edges(m, arity, slot_dims, 0, ids, blocks, offsets, L, base, within, positions, columns);
+}
+
+static void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* ids, const i32* blocks,
+                    const i64* offsets, const i64* L, const i64* base, const i32* within, i32* positions,
+                    i32* columns) {
+  i64 d = slot_dims[0];
+  for (i64 s = 1; s < arity; ++s)
+    if (slot_dims[s] != d) d = 0;
+#define SCATTER(D) scatter_edges(m, arity, slot_dims, D, ids, blocks, offsets, L, base, within, positions, columns)
+  switch (d) { /* the tangent dimensions of SO(2), SE(2) and SO(3), SE(3) */
+    case 1: SCATTER(1); break;
+    case 2: SCATTER(2); break;
+    case 3: SCATTER(3); break;
+    default: scatter_any(m, arity, slot_dims, ids, blocks, offsets, L, base, within, positions, columns);
+  }
+#undef SCATTER
+}
+
+/* A structure's arrays in one call (_patterns.hessian_pattern): the block pattern, H's pattern and
+ * every factor type's scatters, into the caller's arrays: bptr (nv + 1), brows (room: nv +
+ * sum_f m_f a_f^2), indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type
+ * positions (m W^2) and columns (m W), its slot_dims after the previous one's. Writes sizes = (nb,
+ * nnz). Returns 0, -1 without memory, -2 where H holds more than nnz_room entries. */
+int build_structure(i64 nv, i64 n_factors, const i64* dims, const i64* offsets, const i64* m, const i64* arity,
+                    const i64* slot_dims, const i64* const* ids, i32* bptr, i32* brows, i32* indptr, i32* indices,
+                    i64 nnz_room, i32* diagonal, i32* const* positions, i32* const* columns, i64* sizes) {
+  i64 pairs = 0; /* every edge's blocks, factor after factor */
+  for (i64 f = 0; f < n_factors; ++f) pairs += m[f] * arity[f] * arity[f];
+  i32* block_of = malloc(sizeof(i32) * (size_t)(pairs > 0 ? pairs : 1));
+  i32** blocks = malloc(sizeof(i32*) * (size_t)n_factors);
+  i64* L = malloc(sizeof(i64) * (size_t)(2 * nv + 1)); /* then base: nv + 1 */
+  i32* within = malloc(sizeof(i32) * (size_t)(nv + pairs)); /* nb <= nv + pairs */
+  int status = -1;
+  if (!block_of || !blocks || !L || !within) goto done;
+  for (i64 f = 0, at = 0; f < n_factors; at += m[f] * arity[f] * arity[f], ++f) blocks[f] = block_of + at;
+  i64 nb = block_pattern(nv, n_factors, m, arity, ids, bptr, brows, blocks);
+  if (nb < 0) goto done;
+  i64 *base = L + nv, nnz = layout(nv, dims, bptr, brows, L, base, within);
+  sizes[0] = nb, sizes[1] = nnz, status = -2;
+  if (nnz > nnz_room) goto done;
+  expand_pattern(nv, dims, offsets, bptr, brows, L, base, indptr, indices, diagonal);
+  for (i64 f = 0; f < n_factors; slot_dims += arity[f], ++f)
+    factor_scatter(m[f], arity[f], slot_dims, ids[f], blocks[f], offsets, L, base, within, positions[f], columns[f]);
+  status = 0;
+done:
+  free(block_of), free(blocks), free(L), free(within);
+  return status;
 }
 
 /* The lower (upper != 0: the upper) triangle of B = P H P^T, P putting variable order[c] c-th with
@@ -484,10 +540,12 @@ void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr
     if (early_tail) early_tail->next = a;
     else early_head = a;
     early_tail = a;
-    pthread_cond_signal(&early_queued);
   }
   pthread_mutex_unlock(&early_lock);
-  if (!queued) early_run(a), a->done = 1;
+  if (queued) /* after the unlock: the worker woken does not block on the lock (CSAIL: 0.015 -> 0.01 ms) */
+    pthread_cond_signal(&early_queued);
+  else
+    early_run(a), a->done = 1;
   return a;
 }
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manopt_lie.linalg import BlockStructure, _amd, _cholmod, _patterns, structure
-from manopt_lie.linalg._factors import coordinates
+from manopt_lie.linalg import BlockStructure, CholeskySolver, _amd, _cholmod, _patterns, structure
+from manopt_lie.linalg._factors import coordinates, same_buffer
 from manopt_lie.linalg._triangles import permuted_block_triangle
 from manopt_lie.linalg.selected_inverse import _cholmod_factor
 
@@ -53,6 +53,28 @@ def test_the_compiled_structure_is_numpys(monkeypatch, seed):
     (H1, g1), (H2, g2) = (s.normal_equations(blocks, residuals, weights) for s in (made, reference))
     np.testing.assert_array_equal(H1.data, H2.data)
     np.testing.assert_array_equal(g1, g2)
+
+
+@compiled
+@pytest.mark.parametrize("repeats", [False, True], ids=["distinct pairs", "repeated pairs"])
+def test_h_holds_the_structures_own_index_arrays(rng, repeats):
+    """``H`` keeps the structure's ``indptr`` and ``indices`` themselves (SciPy copies a view of a
+    larger buffer), so a solver bound to the structure trusts the pattern: it analyses the blocks
+    and takes the early analysis, not CHOLMOD's analysis of the pattern as it is."""
+    dims, factors = random_factor_graph(rng, n_vars=12)
+    if not repeats:  # a chain: no two edges on one pair, H's room exactly filled
+        dims = np.full(12, 3)
+        factors = [(np.stack([np.arange(11), np.arange(1, 12)], axis=1), 3)]
+    S = BlockStructure(dims, factors)
+    blocks, residuals, weights = random_values(rng, dims, factors)
+    H, g = S.normal_equations(blocks, residuals, weights)
+    for mine, held in ((S.indptr, H.indptr), (S.indices, H.indices)):
+        assert same_buffer(mine, held) and mine.base is None
+    solver = CholeskySolver().bind(S)
+    H.data[S.diagonal_positions] += 1.0
+    solver(H, -g)
+    assert solver._trusted is not None and solver.matches(H)
+    assert same_buffer(solver._indptr, S.indptr) and same_buffer(solver._indices, S.indices)
 
 
 @compiled
