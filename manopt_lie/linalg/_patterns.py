@@ -95,7 +95,7 @@ def hessian_pattern(
     # Inputs: m, arity and the slots' dimensions of every factor; then the outputs nb and nnz.
     counts = np.array([*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims), 0, 0], np.int64)
     at_counts = _at(counts)
-    candidates = np.empty(nv + sum(f.m * a * a for f, a in zip(factors, arities, strict=True)), dtype=np.int32)
+    candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
     # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
     # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
     block_ptr, indptr, indices = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32), np.empty(room, np.int32)

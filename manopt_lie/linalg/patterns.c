@@ -43,26 +43,28 @@ static void sort(i64* a, i64 n) {
 
 /* The variables' graph: block k of column v for every pair of slots (s, t) of every edge (rows of
  * slot s in the columns of slot t) and every diagonal block, sorted and without repeats, as block
- * CSC (bptr: nv + 1, brows: room for nv + sum_f m_f a_f^2, filled with the nb blocks first); and
- * blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t); all 32-bit (the caller
- * checks that H's order fits). Each column's candidates are
- * gathered with where their block goes; the distinct rows are told apart by a mark per row and
- * only they are sorted. Returns nb, -1 without memory. */
+ * CSC (bptr: nv + 1, brows: room for nv + sum_f m_f a_f (a_f - 1), filled with the nb blocks
+ * first); and blocks[f][(t m_f + e) a_f + s], the block of edge e's slots (s, t); all 32-bit (the
+ * caller checks that H's order fits). Each column's candidates (its diagonal block, and the other
+ * slots of its edges: a slot's own block is the diagonal one) are gathered with where their block
+ * goes; the distinct rows are told apart by a mark per row and only they are sorted. Returns nb,
+ * -1 without memory. */
 static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, const i64* const* ids, i32* bptr,
                   i32* brows, i32* const* blocks) {
-  i64 candidates = nv;
-  for (i64 f = 0; f < n_factors; ++f) candidates += m[f] * arity[f] * arity[f];
-  i64* fill = calloc((size_t)(3 * nv + 1), sizeof(i64));
+  i64 candidates = nv; /* an edge's blocks off the diagonal; its slots' own are the diagonal blocks */
+  for (i64 f = 0; f < n_factors; ++f) candidates += m[f] * arity[f] * (arity[f] - 1);
+  i64* fill = calloc((size_t)(4 * nv + 1), sizeof(i64));
   i32** dest = malloc(sizeof(i32*) * (size_t)candidates); /* where each candidate's block index goes */
   if (!fill || !dest) {
     free(fill), free(dest);
     return -1;
   }
   i64 *mark = fill + nv + 1, *where = mark + nv; /* per row: the column that saw it last, its block */
+  i64* diagonal = where + nv;                      /* per column: its diagonal block */
   for (i64 v = 0; v < nv; ++v) fill[v + 1] = 1, mark[v] = -1; /* the diagonal block */
   for (i64 f = 0; f < n_factors; ++f)
     for (i64 e = 0; e < m[f]; ++e)
-      for (i64 t = 0; t < arity[f]; ++t) fill[ids[f][e * arity[f] + t] + 1] += arity[f];
+      for (i64 t = 0; t < arity[f]; ++t) fill[ids[f][e * arity[f] + t] + 1] += arity[f] - 1;
   i64 longest = 0;
   for (i64 v = 0; v < nv; ++v) {
     if (fill[v + 1] > longest) longest = fill[v + 1];
@@ -75,7 +77,8 @@ static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, 
     for (i64 e = 0; e < mf; ++e)
       for (i64 t = 0; t < a; ++t) {
         i64 v = edges[e * a + t];
-        for (i64 s = 0; s < a; ++s) dest[fill[v]] = blocks[f] + (t * mf + e) * a + s, brows[fill[v]++] = (i32)edges[e * a + s];
+        for (i64 s = 0; s < a; ++s)
+          if (s != t) dest[fill[v]] = blocks[f] + (t * mf + e) * a + s, brows[fill[v]++] = (i32)edges[e * a + s];
       }
   }
   i64* distinct = malloc(sizeof(i64) * (size_t)(longest > 0 ? longest : 1));
@@ -91,6 +94,7 @@ static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, 
       if (mark[brows[i]] != v) mark[brows[i]] = v, distinct[count++] = brows[i];
     sort(distinct, count);
     for (i64 k = 0; k < count; ++k) where[distinct[k]] = nb + k;
+    diagonal[v] = where[v];
     for (i64 i = start; i < end; ++i)
       if (dest[i]) *dest[i] = (i32)where[brows[i]];
     bptr[v] = (i32)nb;
@@ -98,6 +102,9 @@ static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, 
     start = end;
   }
   bptr[nv] = (i32)nb;
+  for (i64 f = 0; f < n_factors; ++f)
+    for (i64 e = 0; e < m[f]; ++e)
+      for (i64 t = 0; t < arity[f]; ++t) blocks[f][(t * m[f] + e) * arity[f] + t] = (i32)diagonal[ids[f][e * arity[f] + t]];
   free(distinct);
   free(dest);
   free(fill);
@@ -196,7 +203,7 @@ static void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* id
 
 /* A structure's arrays in one call (_patterns.hessian_pattern): the block pattern, H's pattern and
  * every factor type's scatters, into the caller's arrays: bptr (nv + 1), brows (room: nv +
- * sum_f m_f a_f^2), indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type
+ * sum_f m_f a_f (a_f - 1)), indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type
  * positions (m W^2) and columns (m W), its slot_dims after the previous one's. Writes sizes = (nb,
  * nnz). Returns 0, -1 without memory, -2 where H holds more than nnz_room entries. */
 int build_structure(i64 nv, i64 n_factors, const i64* dims, const i64* offsets, const i64* m, const i64* arity,
