@@ -74,8 +74,9 @@ class EarlyAnalysis:
 
     Parameters
     ----------
-    dims : ndarray of int, shape (n_vars,)
-        The variables' dimensions, all equal.
+    dims : ndarray of int64, shape (n_vars,)
+        The variables' dimensions, all ``dimension``.
+    dimension : int
     indptr : ndarray of int32, shape (n + 1,)
         ``H``'s CSC ``indptr``.
     block_indptr, block_rows : ndarray of int32
@@ -86,24 +87,26 @@ class EarlyAnalysis:
 
     _handle: int | None = None  # patterns.c's, until joined
 
-    def __init__(self, dims: NDArray[np.intp], indptr: Int32, block_indptr: Int32, block_rows: Int32) -> None:
+    def __init__(
+        self, dims: NDArray[np.int64], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32
+    ) -> None:
         self._library = library = _patterns._library()  # found by start(), with AMD
         nv, n = dims.size, indptr.size - 1
         size = (int(indptr[-1]) + n) // 2  # the triangle, its diagonal included
-        # What the thread reads and writes, kept until it is joined: cut from two buffers.
-        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, nv, n, 3, 2])
+        # What the thread writes, kept until it is joined (as what it reads): cut from two buffers.
+        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, n, 3, 2])
         narrow, at_narrow = _patterns.carve(np.int32, [nv, n, n + 1, size, size])
-        self._dims, *self._outputs, self._perm, self._status, cost = wide
-        self._dims[:] = dims
+        *self._outputs, self._perm, self._status, cost = wide
         self._cost = cost.view(np.float64)  # (lnz, fl)
         self._order32, self._columns, *triangle = narrow
         self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
-        self._inputs = (indptr, block_indptr, block_rows)
-        self._status_at = at_wide[5]  # for __del__, also at exit, when module globals may be gone
+        self._inputs = (dims, indptr, block_indptr, block_rows)
+        self._status_at = at_wide[4]  # for __del__, also at exit, when module globals may be gone
+        at = _patterns._at
         handle = library.early_start(
-            _amd.amd_order_address(), nv, int(dims[0]), at_wide[0], *(_patterns._at(a) for a in self._inputs),
+            _amd.amd_order_address(), nv, dimension, *(at(a) for a in self._inputs),
             _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at_narrow[0],
-            *at_wide[1:4], *at_narrow[2:], at_wide[4], at_narrow[1], at_wide[6],
+            *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
         )  # fmt: skip
         if not handle:
             raise MemoryError("patterns.c: no memory to start the analysis")
@@ -113,19 +116,19 @@ class EarlyAnalysis:
 
     @classmethod
     def start(
-        cls, dims: NDArray[np.intp], indptr: NDArray[np.signedinteger], block_indptr: NDArray[np.signedinteger],
-        block_rows: NDArray[np.signedinteger],
+        cls, dims: NDArray[np.intp], dimension: int, indptr: NDArray[np.signedinteger],
+        block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger],
     ) -> EarlyAnalysis | None:  # fmt: skip
-        """An analysis started for this pattern, or ``None`` where none is: more than
-        :data:`EARLY_ENTRIES` entries, variables of several dimensions, indices that are not 32-bit, or
-        no compiled library or AMD here."""
+        """An analysis started for this pattern of variables of one ``dimension`` (0: of several), or
+        ``None`` where none is: more than :data:`EARLY_ENTRIES` entries, variables of several
+        dimensions, indices that are not 32-bit, or no compiled library or AMD here."""
         if (
-            int(indptr[-1]) > EARLY_ENTRIES or dims.size == 0 or dims.min() != dims.max()
+            int(indptr[-1]) > EARLY_ENTRIES or dimension < 1 or dims.dtype != np.int64 or not dims.flags.c_contiguous
             or not all(a.dtype == np.int32 for a in (indptr, block_indptr, block_rows))
             or _patterns._library() is None or _amd.amd_order_address() is None
         ):  # fmt: skip
             return None
-        return cls(dims, indptr, block_indptr, block_rows)
+        return cls(dims, dimension, indptr, block_indptr, block_rows)
 
     def _join(self) -> bool:
         """Wait for the thread (once): whether its statuses were written (not in a forked process, where

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["FactorIndex", "HessianScatter", "check_factor", "coordinates", "exclusive_cumsum", "index_dtype"]
-__all__ += ["same_buffer"]
+__all__ = ["FactorIndex", "HessianScatter", "check_edges", "coordinates", "exclusive_cumsum", "factor_ids"]
+__all__ += ["index_dtype", "same_buffer"]
 
 IntArray = NDArray[np.intp]
 
@@ -64,8 +64,9 @@ class FactorIndex:
         return sum(self.slot_dims)
 
 
-def check_factor(k: int, var_ids: ArrayLike, residual_dim: int, dims: IntArray) -> tuple[IntArray, tuple[int, ...]]:
-    """Validated ``var_ids`` and slot dimensions of factor ``k``."""
+def factor_ids(k: int, var_ids: ArrayLike, residual_dim: int) -> IntArray:
+    """Factor ``k``'s ``var_ids`` as a new ``(m, arity)`` array of ``intp``, its shape, dtype and
+    ``residual_dim`` checked (its edges are :func:`check_edges`'s)."""
     ids = np.asarray(var_ids)
     if ids.ndim != 2 or not np.issubdtype(ids.dtype, np.integer):
         raise ValueError(f"factor {k}: var_ids must be an integer array (m, arity), got {ids.dtype} {ids.shape}")
@@ -73,7 +74,12 @@ def check_factor(k: int, var_ids: ArrayLike, residual_dim: int, dims: IntArray) 
         raise ValueError(f"factor {k}: residual_dim must be a positive integer, got {residual_dim!r}")
     if ids.shape[0] == 0:
         raise ValueError(f"factor {k}: has no edges (leave empty factor types out)")
-    ids = ids.astype(np.intp)
+    return ids.astype(np.intp)
+
+
+def check_edges(k: int, ids: IntArray, dims: IntArray) -> tuple[int, ...]:
+    """The slots' dimensions of factor ``k``, whose edges ``ids`` must name variables in range, none
+    twice, and in each slot variables of one dimension (else a ValueError names the edge)."""
     if ids.min() < 0 or ids.max() >= dims.size:
         e, s = np.argwhere((ids < 0) | (ids >= dims.size))[0]
         raise ValueError(f"factor {k}, edge {e}, slot {s}: variable id {ids[e, s]} is outside [0, {dims.size})")
@@ -83,7 +89,7 @@ def check_factor(k: int, var_ids: ArrayLike, residual_dim: int, dims: IntArray) 
         e = np.argwhere(dup)[0, 0]
         raise ValueError(f"factor {k}, edge {e}: touches variable {srt[e][1:][dup[e]][0]} in two slots")
     if dims.min() == dims.max():
-        return ids, (int(dims[0]),) * ids.shape[1]
+        return (int(dims[0]),) * ids.shape[1]
     slot_dims = dims[ids]
     mixed = slot_dims != slot_dims[0]
     if mixed.any():
@@ -92,7 +98,7 @@ def check_factor(k: int, var_ids: ArrayLike, residual_dim: int, dims: IntArray) 
             f"factor {k}, slot {s}: variables of dimension {slot_dims[0, s]} (edge 0) and "
             f"{slot_dims[e, s]} (edge {e}, variable {ids[e, s]}); every slot needs one dimension"
         )
-    return ids, tuple(int(d) for d in slot_dims[0])
+    return tuple(int(d) for d in slot_dims[0])
 
 
 class HessianScatter:

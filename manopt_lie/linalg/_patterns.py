@@ -36,7 +36,7 @@ the variables' analysis to CHOLMOD: a factor that fills in more is a supernodal 
 
 Int32 = NDArray[np.int32]
 INT32_MAX = np.iinfo(np.int32).max
-Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int32]]]
+Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int32]], NDArray[np.intp]]
 Triangle = tuple[Int32, Int32, Int32]  # a permuted triangle's indptr, rows, and positions in H.data
 
 _P = ctypes.c_void_p
@@ -74,16 +74,24 @@ def carve(dtype: type[np.number], sizes: Sequence[int]) -> tuple[list[NDArray[An
 
 
 def hessian_pattern(
-    dims: NDArray[np.intp], offsets: NDArray[np.intp], factors: Sequence[FactorIndex]
+    dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex]
 ) -> Pattern | None:
-    """A structure's arrays: the block pattern ``(indptr, rows)``, ``H``'s ``indptr``, ``indices``
-    and diagonal positions, and per factor its scatter into ``H.data`` (every edge's ``W²``
-    positions) and into ``g`` (every edge's ``W`` coordinates), all 32-bit; or ``None``."""
+    """A structure's arrays from its variables' dimensions (``n`` in all, ``squares`` their squares'
+    sum) and factor types: the edges checked, then the variables' offsets, the block pattern
+    ``(indptr, rows)``, ``H``'s ``indptr``, ``indices`` and diagonal positions, and per factor its
+    scatter into ``H.data`` (every edge's ``W²`` positions) and into ``g`` (every edge's ``W``
+    coordinates), all 32-bit but the offsets; or ``None``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`~manopt_lie.linalg._factors.check_edges`, for the first factor type with an edge
+        out of range, on a variable twice, or on a variable of another dimension than its slot's.
+    """
     library = _library()
-    n = int(offsets[-1])
     # H's entries where no two edges join the same variables: the diagonal blocks, and each edge's
     # blocks off the diagonal (W² less the slots' own d²); fewer where some do.
-    room = int(np.dot(dims, dims)) + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
+    room = squares + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
     if (
         library is None or max(n, room) >= INT32_MAX
         or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors)
@@ -92,30 +100,34 @@ def hessian_pattern(
     nv, k = dims.size, len(factors)
     ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
     arities = [a.shape[1] for a in ids]
-    # Inputs: m, arity and the slots' dimensions of every factor; then the outputs nb and nnz.
-    counts = np.array([*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims), 0, 0], np.int64)
-    at_counts = _at(counts)
+    # m, arity and the slots' dimensions of every factor; then the outputs: nb and nnz, the offsets.
+    head = [*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)]
+    (counts, sizes, offsets), at64 = carve(np.int64, [len(head), 2, nv + 1])
+    counts[:] = head
     candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
     # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
     # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
     block_ptr, indptr, indices = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32), np.empty(room, np.int32)
-    sizes = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
-    (diagonal, *scatters), at = carve(np.int32, sizes)
+    sizes_ = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
+    (diagonal, *scatters), at = carve(np.int32, sizes_)
     status = library.build_structure(
-        nv, k, _at(np.ascontiguousarray(dims, dtype=np.int64)), _at(np.ascontiguousarray(offsets, dtype=np.int64)),
-        at_counts, at_counts + 8 * k, at_counts + 16 * k, _pointers(ids), _at(block_ptr), _at(candidates),
-        _at(indptr), _at(indices), room, at[0], (ctypes.c_void_p * k)(*at[1 : 1 + k]),
-        (ctypes.c_void_p * k)(*at[1 + k :]), at_counts + 8 * (counts.size - 2),
+        nv, k, _at(np.ascontiguousarray(dims, dtype=np.int64)), at64[2], at64[0], at64[0] + 8 * k, at64[0] + 16 * k,
+        _pointers(ids), _at(block_ptr), _at(candidates), _at(indptr), _at(indices), room, at[0],
+        (ctypes.c_void_p * k)(*at[1 : 1 + k]), (ctypes.c_void_p * k)(*at[1 + k :]), at64[1],
     )  # fmt: skip
+    if status == -3:  # NumPy's checks name the edge
+        f = int(sizes[0])
+        _factors.check_edges(f, factors[f].var_ids, dims)
     if status == -1:
         raise MemoryError("patterns.c: no memory for the structure")
     if status != 0:  # the room bounds every pattern of these edges
-        raise RuntimeError("patterns.c: H holds more entries than its edges can make")
-    nb, nnz = (int(c) for c in counts[-2:])
+        raise RuntimeError(f"patterns.c: the structure's build failed ({status})")
+    nb, nnz = (int(c) for c in sizes)
     block_rows = candidates[:nb].copy()  # not the candidates' room
     if nnz < room:  # edges that join the same variables
         indices = indices[:nnz].copy()
-    return (block_ptr, block_rows), indptr, indices, diagonal, list(zip(scatters[:k], scatters[k:], strict=True))
+    scatters_ = list(zip(scatters[:k], scatters[k:], strict=True))
+    return (block_ptr, block_rows), indptr, indices, diagonal, scatters_, offsets.astype(np.intp, copy=False)
 
 
 def _int32(*arrays: NDArray[np.signedinteger]) -> bool:

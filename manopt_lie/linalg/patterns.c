@@ -201,14 +201,38 @@ static void factor_scatter(i64 m, i64 arity, const i64* slot_dims, const i64* id
 #undef SCATTER
 }
 
-/* A structure's arrays in one call (_patterns.hessian_pattern): the block pattern, H's pattern and
- * every factor type's scatters, into the caller's arrays: bptr (nv + 1), brows (room: nv +
- * sum_f m_f a_f (a_f - 1)), indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type
- * positions (m W^2) and columns (m W), its slot_dims after the previous one's. Writes sizes = (nb,
- * nnz). Returns 0, -1 without memory, -2 where H holds more than nnz_room entries. */
-int build_structure(i64 nv, i64 n_factors, const i64* dims, const i64* offsets, const i64* m, const i64* arity,
+/* Whether every edge names variables in range, none twice, each of its slot's dimension (the
+ * checks of _factors.check_edges, in one pass): 0, or -3 and the first failing factor in *failed. */
+static int check_edges(i64 nv, i64 n_factors, const i64* dims, const i64* m, const i64* arity, const i64* slot_dims,
+                       const i64* const* ids, i64* failed) {
+  for (i64 f = 0; f < n_factors; slot_dims += arity[f], ++f)
+    for (i64 e = 0; e < m[f]; ++e) {
+      const i64* edge = ids[f] + e * arity[f];
+      for (i64 s = 0; s < arity[f]; ++s) {
+        int bad = edge[s] < 0 || edge[s] >= nv || dims[edge[s]] != slot_dims[s];
+        for (i64 t = 0; t < s && !bad; ++t) bad = edge[t] == edge[s];
+        if (bad) {
+          *failed = f;
+          return -3;
+        }
+      }
+    }
+  return 0;
+}
+
+/* A structure's arrays in one call (_patterns.hessian_pattern): the edges checked, then the
+ * variables' offsets (offsets: nv + 1), the block pattern, H's pattern and every factor type's
+ * scatters, into the caller's arrays: bptr (nv + 1), brows (room: nv + sum_f m_f a_f (a_f - 1)),
+ * indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type positions (m W^2)
+ * and columns (m W), its slot_dims after the previous one's. Writes sizes = (nb, nnz). Returns 0,
+ * -1 without memory, -2 where H holds more than nnz_room entries, -3 where an edge fails the checks
+ * (sizes[0]: its factor type). */
+int build_structure(i64 nv, i64 n_factors, const i64* dims, i64* offsets, const i64* m, const i64* arity,
                     const i64* slot_dims, const i64* const* ids, i32* bptr, i32* brows, i32* indptr, i32* indices,
                     i64 nnz_room, i32* diagonal, i32* const* positions, i32* const* columns, i64* sizes) {
+  if (check_edges(nv, n_factors, dims, m, arity, slot_dims, ids, sizes)) return -3;
+  offsets[0] = 0;
+  for (i64 v = 0; v < nv; ++v) offsets[v + 1] = offsets[v] + dims[v];
   i64 pairs = 0; /* every edge's blocks, factor after factor */
   for (i64 f = 0; f < n_factors; ++f) pairs += m[f] * arity[f] * arity[f];
   i32* block_of = malloc(sizeof(i32) * (size_t)(pairs > 0 ? pairs : 1));

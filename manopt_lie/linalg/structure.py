@@ -29,10 +29,11 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ShapeError
+from . import _factors
 from ._amd import variable_order
 from ._analyses import STRUCTURES, digest, structure_key
 from ._early import Analysis, EarlyAnalysis
-from ._factors import FactorIndex, HessianScatter, check_factor, coordinates, exclusive_cumsum, index_dtype, same_buffer
+from ._factors import FactorIndex, HessianScatter, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import hessian_pattern
 from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
 
@@ -103,35 +104,45 @@ class BlockStructure:
         inputs_digest: bytes | None = None,
     ) -> None:  # fmt: skip
         d = np.asarray(dims)
-        if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (d < 1).any():
+        if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (lowest := int(d.min())) < 1:
             raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
         self.dims: IntArray = d.astype(np.intp)
-        self.offsets: IntArray = exclusive_cumsum(self.dims)
         if len(factors) == 0:
             raise ValueError("factors must hold at least one factor type")
-        checked = [check_factor(k, ids, r, self.dims) for k, (ids, r) in enumerate(factors)]
+        ids = [_factors.factor_ids(k, v, r) for k, (v, r) in enumerate(factors)]
+        uniform = int(d.max()) == lowest
+        # The compiled build checks the edges in its pass over them (one dimension: every slot's);
+        # NumPy checks them here for the other builds.
+        check = _factors.check_edges
+        slots = [(lowest,) * a.shape[1] if uniform else check(k, a, self.dims) for k, a in enumerate(ids)]
         self.dense = bool(dense)
-        self._n = int(self.offsets[-1])
+        self._n = d.size * lowest if uniform else int(self.dims.sum())
         self._ordering: IntArray | None = None  # computed at first use
         self._variable_order: IntArray | None = None
         self._digest = None if inputs_digest is None else inputs_digest + b"inputs"
         self._early: EarlyAnalysis | None = None
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
-        self._factors = [
-            FactorIndex(ids, int(r), slot_dims) for (ids, slot_dims), (_, r) in zip(checked, factors, strict=True)
-        ]
-        if dense:
-            self._block_pattern, self._indptr, self._indices, self._diag_pos = dense_pattern(self.dims.size, self._n)
-            self._hess_scatter, self._grad_scatter = dense_scatters(self._factors, self.offsets, self._n)
-        elif (built := hessian_pattern(self.dims, self.offsets, self._factors)) is not None:
-            self._block_pattern, self._indptr, self._indices, self._diag_pos, made = built  # compiled
+        self._factors = [FactorIndex(a, int(r), s) for a, s, (_, r) in zip(ids, slots, factors, strict=True)]
+        squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
+        built = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors)
+        if built is None and uniform:
+            for k, a in enumerate(ids):
+                check(k, a, self.dims)
+        if built is not None:  # compiled
+            self._block_pattern, self._indptr, self._indices, self._diag_pos, made, offsets = built
+            self.offsets: IntArray = offsets
             pairs = zip(made, self._factors, strict=True)
             self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
             self._grad_scatter = [g for _, g in made]
             # The first solve's ordering and symbolic analysis, on a thread while H is first assembled.
-            self._early = EarlyAnalysis.start(self.dims, self._indptr, *self._block_pattern)
+            self._early = EarlyAnalysis.start(self.dims, lowest if uniform else 0, self._indptr, *self._block_pattern)
+        elif dense:
+            self.offsets = exclusive_cumsum(self.dims)
+            self._block_pattern, self._indptr, self._indices, self._diag_pos = dense_pattern(self.dims.size, self._n)
+            self._hess_scatter, self._grad_scatter = dense_scatters(self._factors, self.offsets, self._n)
         else:  # NumPy's build: no compiler, 64-bit indices, or scatters made per chunk
+            self.offsets = exclusive_cumsum(self.dims)
             pattern, block_ids, layout = sparse_pattern(self.dims, self.offsets, [f.var_ids for f in self._factors])
             self._block_pattern, self._indptr, self._indices, self._diag_pos = pattern
             itype = index_dtype(max(self._indices.size, self._n))

@@ -56,6 +56,25 @@ def test_the_compiled_structure_is_numpys(monkeypatch, seed):
 
 
 @compiled
+@pytest.mark.parametrize(
+    ("edges", "match"),
+    [
+        (np.array([[0, 1, 2], [3, 4, 3]]), "factor 1, edge 1: touches variable 3 in two slots"),
+        (np.array([[0, 1, 2], [3, 4, 9]]), r"factor 1, edge 1, slot 2: variable id 9 is outside \[0, 6\)"),
+        (np.array([[0, 1, 2], [-2, 4, 5]]), "factor 1, edge 1, slot 0: variable id -2"),
+    ],
+)
+@pytest.mark.parametrize("build", ["compiled", "numpy", "dense"])
+def test_every_build_names_the_bad_edge(monkeypatch, edges, match, build):
+    """The compiled build checks the edges in its own pass and leaves the message to NumPy's checks:
+    the same error as where NumPy builds (no compiler) or the structure is dense."""
+    if build == "numpy":
+        monkeypatch.setattr(_patterns, "_library", lambda: None)
+    with pytest.raises(ValueError, match=match):
+        BlockStructure(np.full(6, 3), [(np.array([[0, 1]]), 3), (edges, 2)], dense=build == "dense")
+
+
+@compiled
 @pytest.mark.parametrize("repeats", [False, True], ids=["distinct pairs", "repeated pairs"])
 def test_h_holds_the_structures_own_index_arrays(rng, repeats):
     """``H`` keeps the structure's ``indptr`` and ``indices`` themselves (SciPy copies a view of a
@@ -97,7 +116,7 @@ def test_without_compiled_code_numpy_builds_the_structure(monkeypatch, rng):
     """No compiler: ``hessian_pattern`` and the triangle decline, and the NumPy builds serve."""
     monkeypatch.setattr(_patterns, "_library", lambda: None)
     dims, factors = random_factor_graph(rng)
-    assert _patterns.hessian_pattern(np.asarray(dims), np.zeros(dims.size + 1, dtype=np.intp), []) is None
+    assert _patterns.hessian_pattern(np.asarray(dims), int(dims.sum()), int(np.dot(dims, dims)), []) is None
     S = BlockStructure(dims, factors)
     assert _patterns.permuted_block_triangle(S.indptr, S.dims, *S.block_pattern, np.arange(dims.size)) is None
     blocks, residuals, _ = random_values(rng, dims, factors)
