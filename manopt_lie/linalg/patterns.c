@@ -1,11 +1,12 @@
 /* A solve's set-up at the scale of the variables: the index arrays of a block structure, the
  * triangle CHOLMOD factors, and the symbolic factorization of the variables' graph.
  *
- * block_pattern, layout, expand_pattern and factor_scatter build what
- * manopt_lie/linalg/_patterns_numpy.py (sparse_pattern, factor_scatter, and HessianScatter's
- * positions) builds with NumPy, and permuted_triangle what _triangles.py's
- * permuted_block_triangle builds: the same arrays, entry for entry (tests/linalg/test_patterns.py),
- * in a few passes over the blocks instead of a few dozen NumPy calls over the entries.
+ * build_structure checks the edges as _factors.check_edges does, then builds (block_pattern,
+ * layout, expand_pattern, factor_scatter) what manopt_lie/linalg/_patterns_numpy.py
+ * (sparse_pattern, factor_scatter, and HessianScatter's positions) builds with NumPy, and
+ * permuted_triangle what _triangles.py's permuted_block_triangle builds: the same arrays, entry for
+ * entry (tests/linalg/test_patterns.py), in a few passes over the blocks instead of a few dozen
+ * NumPy calls over the entries.
  * block_symbolic and expand_supernodes make B's symbolic factor from the variables' (_cholmod.py,
  * Cholmod._analyze_blocks). early_start runs AMD, block_symbolic and permuted_triangle on a worker
  * thread while Python linearizes (_early.py). The callers (manopt_lie/linalg/_patterns.py,
@@ -104,7 +105,8 @@ static i64 block_pattern(i64 nv, i64 n_factors, const i64* m, const i64* arity, 
   bptr[nv] = (i32)nb;
   for (i64 f = 0; f < n_factors; ++f)
     for (i64 e = 0; e < m[f]; ++e)
-      for (i64 t = 0; t < arity[f]; ++t) blocks[f][(t * m[f] + e) * arity[f] + t] = (i32)diagonal[ids[f][e * arity[f] + t]];
+      for (i64 t = 0; t < arity[f]; ++t)
+        blocks[f][(t * m[f] + e) * arity[f] + t] = (i32)diagonal[ids[f][e * arity[f] + t]];
   free(distinct);
   free(dest);
   free(fill);

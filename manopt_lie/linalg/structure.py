@@ -111,8 +111,8 @@ class BlockStructure:
             raise ValueError("factors must hold at least one factor type")
         ids = [_factors.factor_ids(k, v, r) for k, (v, r) in enumerate(factors)]
         uniform = int(d.max()) == lowest
-        # The compiled build checks the edges in its pass over them (one dimension: every slot's);
-        # NumPy checks them here for the other builds.
+        # One dimension: the compiled build checks the edges in its pass over them, NumPy below for
+        # the other builds. Several: NumPy checks them here, as it finds the slots' dimensions.
         check = _factors.check_edges
         slots = [(lowest,) * a.shape[1] if uniform else check(k, a, self.dims) for k, a in enumerate(ids)]
         self.dense = bool(dense)
