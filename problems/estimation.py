@@ -284,7 +284,7 @@ def known_point_factor(
         r, (j_x, _) = inner.residual(x, b, jac=True)
         return r, [j_x]
 
-    return Factor(v[:, None], residual, name=name, blocks=block)
+    return Factor(v[:, None], residual, name=name, blocks=block, residual_dim=inner.residual_dim)
 
 
 def nees(errors: ArrayLike, covariances: ArrayLike) -> FloatArray:

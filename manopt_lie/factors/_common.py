@@ -117,4 +117,4 @@ def whitened_factor(
         r, jacobians = kernel(*points, jac=True)
         return model.whiten(r), [model.whiten_jacobian(j) for j in jacobians]
 
-    return Factor(variables, residual, loss=loss, name=name, blocks=blocks)
+    return Factor(variables, residual, loss=loss, name=name, blocks=blocks, residual_dim=dim)

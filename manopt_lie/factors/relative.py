@@ -86,7 +86,8 @@ def between_factor(
             return fused(as_group(xi, group, name), as_group(xj, group, name), jac)
 
         residual.native_between = fused.native_between  # type: ignore[attr-defined]  # for optim._small_system
-        return Factor(v, residual, loss=loss, name=name, blocks=blocks, fresh_jacobians=True)
+        return Factor(v, residual, loss=loss, name=name, blocks=blocks, fresh_jacobians=True,
+                      residual_dim=group.dim)
 
     def kernel(xi: Any, xj: Any, jac: bool = False) -> Any:
         return _between(as_group(xi, group, name), as_group(xj, group, name), z_inv, jac)

@@ -165,6 +165,11 @@ class StructurePool:
                 _evict_oldest(self._kept, lambda structure: structure.nnz, self.max_kept, self.max_kept_nnz)
         return built
 
+    def __contains__(self, key: bytes) -> bool:
+        """Whether a structure of ``key`` is kept (counted neither a hit nor a miss)."""
+        with self._lock:
+            return key in self._kept
+
     def clear(self) -> None:
         """Drop every structure (and reset the counters)."""
         with self._lock:

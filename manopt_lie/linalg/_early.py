@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from . import _amd, _patterns
 from ._cholmod_types import _DEFAULTS
-from ._patterns import Int32, Triangle
+from ._patterns import Int32, StructureBuild, Triangle
 
 __all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
 
@@ -81,6 +81,10 @@ class EarlyAnalysis:
         ``H``'s CSC ``indptr``.
     block_indptr, block_rows : ndarray of int32
         The block pattern (both triangles, every diagonal block).
+    build : StructureBuild, optional
+        The structure's build, not run yet: the thread runs it first (:meth:`built` waits for it),
+        and the pattern is what it makes (``indptr``, ``block_indptr`` and ``block_rows`` are
+        then its arrays).
 
     The arrays must not change until :meth:`result` (the structure's never do).
     """
@@ -88,25 +92,27 @@ class EarlyAnalysis:
     _handle: int | None = None  # patterns.c's, until joined
 
     def __init__(
-        self, dims: NDArray[np.int64], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32
-    ) -> None:
+        self, dims: NDArray[np.int64], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32,
+        build: StructureBuild | None = None,
+    ) -> None:  # fmt: skip
         self._library = library = _patterns._library()  # found by start(), with AMD
         nv, n = dims.size, indptr.size - 1
-        size = (int(indptr[-1]) + n) // 2  # the triangle, its diagonal included
+        entries = int(indptr[-1]) if build is None else build.room  # at most, before the build
+        size = (entries + n) // 2  # the triangle, its diagonal included
         # What the thread writes, kept until it is joined (as what it reads): cut from two buffers.
-        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, n, 3, 2])
+        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, n, 3, 2, 1])
         narrow, at_narrow = _patterns.carve(np.int32, [nv, n, n + 1, size, size])
-        *self._outputs, self._perm, self._status, cost = wide
+        *self._outputs, self._perm, self._status, cost, self._build_status = wide
         self._cost = cost.view(np.float64)  # (lnz, fl)
         self._order32, self._columns, *triangle = narrow
         self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
-        self._inputs = (dims, indptr, block_indptr, block_rows)
-        self._status_at = at_wide[4]  # for __del__, also at exit, when module globals may be gone
+        self._inputs = (dims, indptr, block_indptr, block_rows, build)
+        self._status_at, self._build_status_at = at_wide[4], at_wide[6]  # for __del__ (also at exit) and built()
         at = _patterns._at
         handle = library.early_start(
-            _amd.amd_order_address(), nv, dimension, *(at(a) for a in self._inputs),
-            _patterns.SIMPLICIAL_FILL * block_rows.size, _DEFAULTS["supernodal_switch"], size, at_narrow[0],
-            *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
+            None if build is None else build.address, _amd.amd_order_address(), nv, dimension,
+            *(at(a) for a in self._inputs[:4]), _patterns.SIMPLICIAL_FILL, _DEFAULTS["supernodal_switch"], size,
+            at_narrow[0], *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
         )  # fmt: skip
         if not handle:
             raise MemoryError("patterns.c: no memory to start the analysis")
@@ -122,13 +128,34 @@ class EarlyAnalysis:
         """An analysis started for this pattern of variables of one ``dimension`` (0: of several), or
         ``None`` where none is: more than :data:`EARLY_ENTRIES` entries, variables of several
         dimensions, indices that are not 32-bit, or no compiled library or AMD here."""
-        if (
-            int(indptr[-1]) > EARLY_ENTRIES or dimension < 1 or dims.dtype != np.int64 or not dims.flags.c_contiguous
-            or not all(a.dtype == np.int32 for a in (indptr, block_indptr, block_rows))
-            or _patterns._library() is None or _amd.amd_order_address() is None
-        ):  # fmt: skip
+        if int(indptr[-1]) > EARLY_ENTRIES or not all(a.dtype == np.int32 for a in (indptr, block_indptr, block_rows)):
             return None
-        return cls(dims, dimension, indptr, block_indptr, block_rows)
+        return cls(dims, dimension, indptr, block_indptr, block_rows) if cls._runs(dims, dimension) else None
+
+    @classmethod
+    def start_with(cls, dims: NDArray[np.intp], dimension: int, build: StructureBuild) -> EarlyAnalysis | None:
+        """An analysis started after ``build`` on the thread, as :meth:`start` would start one after it
+        (its room bounding the entries), or ``None``."""
+        if build.room > EARLY_ENTRIES or not cls._runs(dims, dimension):
+            return None
+        return cls(dims, dimension, build.indptr, build.block_ptr, build.candidates, build)
+
+    @staticmethod
+    def _runs(dims: NDArray[np.intp], dimension: int) -> bool:
+        return (
+            dimension >= 1 and dims.dtype == np.int64 and dims.flags.c_contiguous
+            and _patterns._library() is not None and _amd.amd_order_address() is not None
+        )  # fmt: skip
+
+    def built(self) -> int | None:
+        """Waits for the build (given at construction) and returns its status, or ``None`` in a process
+        forked from the one that started it (its arrays are unwritten: build them here)."""
+        handle = self._handle
+        if handle is None:
+            return None
+        if self._library.early_built(handle, self._build_status_at) != 0:
+            return None
+        return int(self._build_status[0])
 
     def _join(self) -> bool:
         """Wait for the thread (once): whether its statuses were written (not in a forked process, where
@@ -154,6 +181,9 @@ class EarlyAnalysis:
         made = None
         if triangle == 0:
             cost = (float(self._cost[0]), float(self._cost[1]))
-            made = Simplicial(cost, self._columns, self._triangle, self._perm.astype(np.intp, copy=False))
+            indptr, rows, gather = self._triangle
+            size = int(indptr[-1])  # below the room where the structure was built on the thread
+            perm = self._perm.astype(np.intp, copy=False)
+            made = Simplicial(cost, self._columns, (indptr, rows[:size], gather[:size]), perm)
         symbolic_ = (variables.astype(np.intp, copy=False), counts) if symbolic == 0 else None
         return Analysis(order.astype(np.intp, copy=False), symbolic_, made)

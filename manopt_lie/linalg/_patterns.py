@@ -28,7 +28,7 @@ from .. import _native
 from . import _factors
 from ._factors import FactorIndex
 
-__all__ = ["block_symbolic", "hessian_pattern", "permuted_block_triangle"]
+__all__ = ["StructureBuild", "block_symbolic", "hessian_pattern", "permuted_block_triangle"]
 
 SIMPLICIAL_FILL = 8
 """The most blocks of ``L`` per stored block of ``H`` :func:`block_symbolic` counts before it leaves
@@ -42,11 +42,12 @@ Triangle = tuple[Int32, Int32, Int32]  # a permuted triangle's indptr, rows, and
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
-    "build_structure": (ctypes.c_int, [_I, _I, *[_P] * 10, _I, *[_P] * 4]),
+    "build_structure": (ctypes.c_int, [_P]),
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
-    "early_start": (_P, [_P, _I, _I, _P, _P, _P, _P, _I, ctypes.c_double, _I, *[_P] * 10]),
+    "early_start": (_P, [_P, _P, _I, _I, _P, _P, _P, _P, _I, ctypes.c_double, _I, *[_P] * 10]),
+    "early_built": (ctypes.c_int, [_P, _P]),
     "early_join": (ctypes.c_int, [_P, _P]),
 }
 
@@ -73,61 +74,92 @@ def carve(dtype: type[np.number], sizes: Sequence[int]) -> tuple[list[NDArray[An
     return [buffer[a:b] for a, b in itertools.pairwise(starts)], [base + itemsize * a for a in starts[:-1]]
 
 
+class StructureBuild:
+    """A structure's compiled build (``patterns.c: build_structure``), planned: its arrays made empty
+    and its arguments packed in one array for the C, which fills them now (:meth:`run`) or on the
+    worker thread, before the structure's analysis there (``_early.EarlyAnalysis``, ``build=``),
+    while the caller goes on. :meth:`result` then reads them. Made by :func:`hessian_pattern`.
+
+    Attributes
+    ----------
+    n, room : int
+        ``H``'s order and the most entries it may store (no two edges joining the same variables).
+    block_ptr, candidates, indptr : ndarray of int32
+        The block pattern's ``indptr``, the room its rows are gathered in (the ``nb`` rows first,
+        once built) and ``H``'s ``indptr``: what the analysis reads.
+    """
+
+    def __init__(self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex]) -> None:
+        nv, k = dims.size, len(factors)
+        self._factors, self._dims, self.n, self.room = factors, dims, n, room
+        ids = self._ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
+        arities = [a.shape[1] for a in ids]
+        # m, arity and the slots' dimensions of every factor, after build's 17 arguments and the 3 k
+        # pointers they point to (the edges, the positions, the columns); then nb and nnz, the offsets.
+        head = [*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)]
+        packed = 17 + 3 * k
+        (args, self._sizes, self._offsets), at64 = carve(np.int64, [packed + len(head), 2, nv + 1])
+        self.candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
+        # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
+        # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
+        self.block_ptr, self.indptr = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32)
+        self._indices = np.empty(room, np.int32)
+        lengths = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
+        (self._diagonal, *self._scatters), at = carve(np.int32, lengths)
+        self._dims64 = np.ascontiguousarray(dims, dtype=np.int64)
+        self.address, heads, pointers = at64[0], at64[0] + 8 * packed, at64[0] + 8 * 17
+        args[:] = [
+            nv, k, _at(self._dims64), at64[2], heads, heads + 8 * k, heads + 16 * k, pointers,
+            _at(self.block_ptr), _at(self.candidates), _at(self.indptr), _at(self._indices), room, at[0],
+            pointers + 8 * k, pointers + 16 * k, at64[1], *(_at(a) for a in ids), *at[1:], *head,
+        ]  # fmt: skip
+
+    def run(self) -> Pattern:
+        """Build here and now: :meth:`result`."""
+        return self.result(_library().build_structure(self.address))
+
+    def result(self, status: int) -> Pattern:
+        """The built arrays, given the build's status: the block pattern ``(indptr, rows)``, ``H``'s
+        ``indptr``, ``indices`` and diagonal positions, and per factor its scatter into ``H.data``
+        (every edge's ``W²`` positions) and into ``g`` (every edge's ``W`` coordinates), all 32-bit;
+        then the variables' offsets.
+
+        Raises
+        ------
+        ValueError
+            As :func:`~manopt_lie.linalg._factors.check_edges`, for the first factor type with an edge
+            out of range, on a variable twice, or on a variable of another dimension than its slot's.
+        """
+        if status == -3:  # NumPy's checks name the edge
+            f = int(self._sizes[0])
+            _factors.check_edges(f, self._factors[f].var_ids, self._dims)
+        if status == -1:
+            raise MemoryError("patterns.c: no memory for the structure")
+        if status != 0:  # the room bounds every pattern of these edges
+            raise RuntimeError(f"patterns.c: the structure's build failed ({status})")
+        nb, nnz = (int(c) for c in self._sizes)
+        block_rows = self.candidates[:nb].copy()  # not the candidates' room
+        indices = self._indices if nnz == self.room else self._indices[:nnz].copy()  # edges joining the same variables
+        k = len(self._factors)
+        scatters = list(zip(self._scatters[:k], self._scatters[k:], strict=True))
+        offsets = self._offsets.astype(np.intp, copy=False)
+        return (self.block_ptr, block_rows), self.indptr, indices, self._diagonal, scatters, offsets
+
+
 def hessian_pattern(
     dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex]
-) -> Pattern | None:
-    """A structure's arrays from its variables' dimensions (``n`` in all, ``squares`` their squares'
-    sum) and factor types: the edges checked, then the variables' offsets, the block pattern
-    ``(indptr, rows)``, ``H``'s ``indptr``, ``indices`` and diagonal positions, and per factor its
-    scatter into ``H.data`` (every edge's ``W²`` positions) and into ``g`` (every edge's ``W``
-    coordinates), all 32-bit but the offsets; or ``None``.
-
-    Raises
-    ------
-    ValueError
-        As :func:`~manopt_lie.linalg._factors.check_edges`, for the first factor type with an edge
-        out of range, on a variable twice, or on a variable of another dimension than its slot's.
-    """
-    library = _library()
+) -> StructureBuild | None:
+    """The compiled build of a structure's arrays from its variables' dimensions (``n`` in all,
+    ``squares`` their squares' sum) and factor types, planned (:class:`StructureBuild`), or ``None``."""
     # H's entries where no two edges join the same variables: the diagonal blocks, and each edge's
     # blocks off the diagonal (W² less the slots' own d²); fewer where some do.
     room = squares + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
     if (
-        library is None or max(n, room) >= INT32_MAX
+        _library() is None or max(n, room) >= INT32_MAX
         or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors)
     ):  # fmt: skip
         return None
-    nv, k = dims.size, len(factors)
-    ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
-    arities = [a.shape[1] for a in ids]
-    # m, arity and the slots' dimensions of every factor; then the outputs: nb and nnz, the offsets.
-    head = [*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)]
-    (counts, sizes, offsets), at64 = carve(np.int64, [len(head), 2, nv + 1])
-    counts[:] = head
-    candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
-    # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
-    # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
-    block_ptr, indptr, indices = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32), np.empty(room, np.int32)
-    lengths = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
-    (diagonal, *scatters), at = carve(np.int32, lengths)
-    status = library.build_structure(
-        nv, k, _at(np.ascontiguousarray(dims, dtype=np.int64)), at64[2], at64[0], at64[0] + 8 * k, at64[0] + 16 * k,
-        _pointers(ids), _at(block_ptr), _at(candidates), _at(indptr), _at(indices), room, at[0],
-        (ctypes.c_void_p * k)(*at[1 : 1 + k]), (ctypes.c_void_p * k)(*at[1 + k :]), at64[1],
-    )  # fmt: skip
-    if status == -3:  # NumPy's checks name the edge
-        f = int(sizes[0])
-        _factors.check_edges(f, factors[f].var_ids, dims)
-    if status == -1:
-        raise MemoryError("patterns.c: no memory for the structure")
-    if status != 0:  # the room bounds every pattern of these edges
-        raise RuntimeError(f"patterns.c: the structure's build failed ({status})")
-    nb, nnz = (int(c) for c in sizes)
-    block_rows = candidates[:nb].copy()  # not the candidates' room
-    if nnz < room:  # edges that join the same variables
-        indices = indices[:nnz].copy()
-    scatters_ = list(zip(scatters[:k], scatters[k:], strict=True))
-    return (block_ptr, block_rows), indptr, indices, diagonal, scatters_, offsets.astype(np.intp, copy=False)
+    return StructureBuild(dims, n, room, factors)
 
 
 def _int32(*arrays: NDArray[np.signedinteger]) -> bool:

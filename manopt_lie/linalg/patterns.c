@@ -225,16 +225,16 @@ static int check_edges(i64 nv, i64 n_factors, const i64* dims, const i64* m, con
   return 0;
 }
 
-/* A structure's arrays in one call (_patterns.hessian_pattern): the edges checked, then the
+/* A structure's arrays in one pass (_patterns.StructureBuild): the edges checked, then the
  * variables' offsets (offsets: nv + 1), the block pattern, H's pattern and every factor type's
  * scatters, into the caller's arrays: bptr (nv + 1), brows (room: nv + sum_f m_f a_f (a_f - 1)),
  * indptr (n + 1), indices (room: nnz_room), diagonal (n), and per factor type positions (m W^2)
  * and columns (m W), its slot_dims after the previous one's. Writes sizes = (nb, nnz). Returns 0,
  * -1 without memory, -2 where H holds more than nnz_room entries, -3 where an edge fails the checks
  * (sizes[0]: its factor type). */
-int build_structure(i64 nv, i64 n_factors, const i64* dims, i64* offsets, const i64* m, const i64* arity,
-                    const i64* slot_dims, const i64* const* ids, i32* bptr, i32* brows, i32* indptr, i32* indices,
-                    i64 nnz_room, i32* diagonal, i32* const* positions, i32* const* columns, i64* sizes) {
+static int build(i64 nv, i64 n_factors, const i64* dims, i64* offsets, const i64* m, const i64* arity,
+                 const i64* slot_dims, const i64* const* ids, i32* bptr, i32* brows, i32* indptr, i32* indices,
+                 i64 nnz_room, i32* diagonal, i32* const* positions, i32* const* columns, i64* sizes) {
   if (check_edges(nv, n_factors, dims, m, arity, slot_dims, ids, sizes)) return -3;
   offsets[0] = 0;
   for (i64 v = 0; v < nv; ++v) offsets[v + 1] = offsets[v] + dims[v];
@@ -260,6 +260,17 @@ done:
   free(block_of), free(blocks), free(L), free(within);
   return status;
 }
+
+/* build with its arguments packed in one array, addresses as integers, in its order (as
+ * _patterns.StructureBuild writes them): one argument to pass, from Python or to the worker
+ * (early_start). */
+#define ARG(i, type) ((type)(intptr_t)args[i])
+int build_structure(const i64* args) {
+  return build(args[0], args[1], ARG(2, const i64*), ARG(3, i64*), ARG(4, const i64*), ARG(5, const i64*),
+               ARG(6, const i64*), ARG(7, const i64* const*), ARG(8, i32*), ARG(9, i32*), ARG(10, i32*),
+               ARG(11, i32*), args[12], ARG(13, i32*), ARG(14, i32* const*), ARG(15, i32* const*), ARG(16, i64*));
+}
+#undef ARG
 
 /* The lower (upper != 0: the upper) triangle of B = P H P^T, P putting variable order[c] c-th with
  * its coordinates in order, as CSC (indptr: n + 1, rows: (nnz + n) / 2, sorted) and the position in
@@ -460,9 +471,11 @@ int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, 
   return 0;
 }
 
-/* A new structure's analysis on a worker thread (_early.py): AMD's order of the variables' graph
+/* A new structure's analysis on a worker thread (_early.py), after its build where it is given one
+ * (build: build_structure's packed arguments, whose outputs the analysis then reads; NULL where
+ * the caller built it): AMD's order of the variables' graph
  * (amd: AMD's amd_order, called through its address), the variables' simplicial symbolic
- * factorization in that order (block_symbolic), and, where CHOLMOD's default choice of kind is
+ * factorization in that order (block_symbolic, up to fill blocks of L per block of H), and, where CHOLMOD's default choice of kind is
  * simplicial (fl < supernodal_switch lnz, the coordinates' costs from the blocks' as in
  * Cholmod._analyze_blocks, every variable of dimension d), B's simplicial symbolic factor: its cost
  * (lnz, fl), its column counts (colcount: n) and the upper triangle of B in the postordered order
@@ -482,7 +495,7 @@ typedef struct early_analysis {
   unsigned long forks; /* early_forks where it started */
   int done;
   amd_order_fn amd;
-  i64 nv, d, budget, size;
+  i64 nv, d, fill, size;
   double supernodal_switch;
   const i64* dims;
   const i32 *h_indptr, *bptr, *brows;
@@ -491,14 +504,29 @@ typedef struct early_analysis {
   i32 *indptr, *rows, *gather, *colcount;
   double* cost;
   i64 status[3];
+  const i64* build; /* build_structure's packed arguments, or NULL */
+  int built;        /* the build done (early_built), or none to do */
+  i64 build_status;
 } early_analysis;
 
+static pthread_mutex_t early_lock = PTHREAD_MUTEX_INITIALIZER;
+static pthread_cond_t early_queued = PTHREAD_COND_INITIALIZER, early_done = PTHREAD_COND_INITIALIZER;
+
 static void early_run(early_analysis* a) {
+  if (a->build) { /* the structure first: the analysis reads its block pattern and H's indptr */
+    int status = build_structure(a->build);
+    pthread_mutex_lock(&early_lock);
+    a->build_status = status, a->built = 1;
+    pthread_cond_broadcast(&early_done);
+    pthread_mutex_unlock(&early_lock);
+    if (status != 0) return;
+  }
   i64 nv = a->nv, d = a->d;
   a->status[0] = a->amd((i32)nv, a->bptr, a->brows, a->amd_order, NULL, NULL);
   if (a->status[0] != 0 && a->status[0] != 1) return; /* AMD_OK, AMD_OK_BUT_JUMBLED */
   for (i64 k = 0; k < nv; ++k) a->order[k] = a->amd_order[k];
-  a->status[1] = block_symbolic(nv, a->bptr, a->brows, a->order, a->budget, a->variables, a->counts);
+  i64 budget = a->fill * a->bptr[nv]; /* per block: the build's brows are its room, the nb blocks first */
+  a->status[1] = block_symbolic(nv, a->bptr, a->brows, a->order, budget, a->variables, a->counts);
   if (a->status[1] != 0 || a->size <= 0) return;
   double lnz_b = 0, fl_b = 0; /* sum c and sum c^2 over the variables, then over the coordinates */
   for (i64 k = 0; k < nv; ++k) lnz_b += (double)a->counts[k], fl_b += (double)a->counts[k] * (double)a->counts[k];
@@ -512,8 +540,6 @@ static void early_run(early_analysis* a) {
                                    a->rows, a->gather, a->perm);
 }
 
-static pthread_mutex_t early_lock = PTHREAD_MUTEX_INITIALIZER;
-static pthread_cond_t early_queued = PTHREAD_COND_INITIALIZER, early_done = PTHREAD_COND_INITIALIZER;
 static early_analysis *early_head = NULL, *early_tail = NULL;
 static int early_running = 0;           /* a worker runs in this process */
 static unsigned long early_forks = 0;   /* forks from the first process to this one */
@@ -555,16 +581,18 @@ static int early_worker(void) { /* with the lock held: whether a worker runs, ma
   return early_running;
 }
 
-/* Starts the analysis (on the caller's thread where no worker can be made) and returns its handle,
- * for early_join; NULL without memory. */
-void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
-                  i64 budget, double supernodal_switch, i64 size, i32* amd_order, i64* order, i64* variables,
-                  i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm, i32* colcount, double* cost) {
+/* Starts the analysis, after the build if one is given (on the caller's thread where no worker can
+ * be made), and returns its handle, for early_built and early_join; NULL without memory. */
+void* early_start(const i64* build, void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr, const i32* bptr,
+                  const i32* brows, i64 fill, double supernodal_switch, i64 size, i32* amd_order, i64* order,
+                  i64* variables, i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm, i32* colcount,
+                  double* cost) {
   early_analysis* a = malloc(sizeof(early_analysis));
   if (!a) return NULL;
   a->next = NULL, a->done = 0;
+  a->build = build, a->built = build == NULL, a->build_status = 0;
   a->amd = (amd_order_fn)amd;
-  a->nv = nv, a->d = d, a->budget = budget, a->size = size, a->supernodal_switch = supernodal_switch;
+  a->nv = nv, a->d = d, a->fill = fill, a->size = size, a->supernodal_switch = supernodal_switch;
   a->dims = dims, a->h_indptr = h_indptr, a->bptr = bptr, a->brows = brows;
   a->amd_order = amd_order, a->order = order, a->variables = variables, a->counts = counts;
   a->indptr = indptr, a->rows = rows, a->gather = gather, a->perm = perm, a->colcount = colcount, a->cost = cost;
@@ -583,6 +611,18 @@ void* early_start(void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr
   else
     early_run(a), a->done = 1;
   return a;
+}
+
+/* Waits for the analysis's build and writes its status (build_structure's). Returns 0; -1 in a
+ * process forked from the one that started it (as early_join). */
+int early_built(void* handle, i64* status) {
+  early_analysis* a = handle;
+  pthread_mutex_lock(&early_lock);
+  int ours = a->forks == early_forks;
+  while (ours && !a->built) pthread_cond_wait(&early_done, &early_lock);
+  pthread_mutex_unlock(&early_lock);
+  *status = a->build_status;
+  return ours ? 0 : -1;
 }
 
 /* Waits for the analysis, writes its status (3) and frees the handle. Returns 0; -1 in a process

@@ -21,7 +21,7 @@ where it cannot serve, with NumPy (``_patterns_numpy``): the same arrays.
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 import numpy as np
@@ -34,7 +34,7 @@ from ._amd import variable_order
 from ._analyses import STRUCTURES, digest, structure_key
 from ._early import Analysis, EarlyAnalysis
 from ._factors import FactorIndex, HessianScatter, coordinates, exclusive_cumsum, index_dtype, same_buffer
-from ._patterns import hessian_pattern
+from ._patterns import Pattern, StructureBuild, hessian_pattern
 from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
 
 __all__ = ["BlockStructure"]
@@ -99,10 +99,24 @@ class BlockStructure:
     dense matrix itself, column after column (``H.data.reshape(n, n)``, symmetric).
     """
 
+    # Made by the build (which one depends on the structure; on the worker, at _finish).
+    _block_pattern: tuple[NDArray[np.signedinteger], NDArray[np.signedinteger]]
+    _indptr: NDArray[np.signedinteger]
+    _indices: NDArray[np.signedinteger]
+    _diag_pos: NDArray[np.signedinteger]
+
     def __init__(
         self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False,
         inputs_digest: bytes | None = None,
     ) -> None:  # fmt: skip
+        self._setup(dims, factors, dense, inputs_digest, on_worker=False)
+
+    def _setup(
+        self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], dense: bool, inputs_digest: bytes | None,
+        on_worker: bool,
+    ) -> None:  # fmt: skip
+        """The constructor's work; ``on_worker``: the compiled build is left to the worker thread where
+        it can run there (:meth:`_started`)."""
         d = np.asarray(dims)
         if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (lowest := int(d.min())) < 1:
             raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
@@ -121,27 +135,29 @@ class BlockStructure:
         self._variable_order: IntArray | None = None
         self._digest = None if inputs_digest is None else inputs_digest + b"inputs"
         self._early: EarlyAnalysis | None = None
+        self._build: StructureBuild | None = None  # running on the worker, until _finish
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [FactorIndex(a, int(r), s) for a, s, (_, r) in zip(ids, slots, factors, strict=True)]
         squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
-        built = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors)
-        if built is None and uniform:
+        build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors)
+        if build is None and uniform:
             for k, a in enumerate(ids):
                 check(k, a, self.dims)
-        if built is not None:  # compiled
-            self._block_pattern, self._indptr, self._indices, self._diag_pos, made, offsets = built
-            self.offsets: IntArray = offsets
-            pairs = zip(made, self._factors, strict=True)
-            self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
-            self._grad_scatter = [g for _, g in made]
+        dimension = lowest if uniform else 0
+        if build is not None and on_worker:  # built, then analysed, on the worker
+            self._early = EarlyAnalysis.start_with(self.dims, dimension, build)
+            self._build = build if self._early is not None else None
+        if build is not None and self._build is None:  # compiled, here
+            self._take(build.run())
             # The first solve's ordering and symbolic analysis, on a thread while H is first assembled.
-            self._early = EarlyAnalysis.start(self.dims, lowest if uniform else 0, self._indptr, *self._block_pattern)
+            self._early = EarlyAnalysis.start(self.dims, dimension, self._indptr, *self._block_pattern)
         elif dense:
             self.offsets = exclusive_cumsum(self.dims)
             self._block_pattern, self._indptr, self._indices, self._diag_pos = dense_pattern(self.dims.size, self._n)
             self._hess_scatter, self._grad_scatter = dense_scatters(self._factors, self.offsets, self._n)
-        else:  # NumPy's build: no compiler, 64-bit indices, or scatters made per chunk
+            self._diag_pos.flags.writeable = False
+        elif build is None:  # NumPy's build: no compiler, 64-bit indices, or scatters made per chunk
             self.offsets = exclusive_cumsum(self.dims)
             pattern, block_ids, layout = sparse_pattern(self.dims, self.offsets, [f.var_ids for f in self._factors])
             self._block_pattern, self._indptr, self._indices, self._diag_pos = pattern
@@ -150,7 +166,7 @@ class BlockStructure:
                         for f, b in zip(self._factors, block_ids, strict=True)]  # fmt: skip
             self._hess_scatter = [h for h, _ in scatters]
             self._grad_scatter = [g for _, g in scatters]
-        self._diag_pos.flags.writeable = False
+            self._diag_pos.flags.writeable = False
         # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
         self._chunks = [max(1, min(f.m, CHUNK // f.width**2)) for f in self._factors]
         # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
@@ -159,6 +175,44 @@ class BlockStructure:
         self._local = threading.local()
         self._first: tuple[int, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]] | None = None
         self._jac: _JacobianPattern | None = None
+
+    def _take(self, built: Pattern) -> None:
+        """The compiled build's arrays (:meth:`StructureBuild.result`)."""
+        self._block_pattern, self._indptr, self._indices, self._diag_pos, made, self.offsets = built
+        pairs = zip(made, self._factors, strict=True)
+        self._hess_scatter = [HessianScatter.of_positions(h, f.width) for (h, _), f in pairs]
+        self._grad_scatter = [g for _, g in made]
+        self._diag_pos.flags.writeable = False
+
+    @classmethod
+    def _started(
+        cls, dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool, key: bytes
+    ) -> BlockStructure | None:
+        """The structure of these inputs (``key``: their :func:`structure_key`), its compiled build and
+        analysis started on the worker thread (where they can run there; else built here), for a
+        problem that evaluates its first residuals meanwhile and then calls :meth:`_finish` before
+        anything else; ``None`` where the inputs are invalid (the constructor raises then)."""
+        structure = cls.__new__(cls)
+        try:
+            structure._setup(dims, factors, dense, key, on_worker=True)
+        except ValueError:
+            return None
+        return structure
+
+    def _finish(self) -> BlockStructure:
+        """This structure, its build on the worker (:meth:`_started`) waited for and taken.
+
+        Raises
+        ------
+        ValueError
+            As the constructor, on edges its checks refuse.
+        """
+        build, self._build = self._build, None
+        if build is not None:
+            assert self._early is not None
+            status = self._early.built()  # None: forked since; the build is made here
+            self._take(build.run() if status is None else build.result(status))
+        return self
 
     @classmethod
     def shared(
@@ -187,9 +241,25 @@ class BlockStructure:
         ValueError
             As the constructor, for a new structure; nothing is kept then.
         """
+        return cls._shared_later(dims, factors, dense, start=False)()
+
+    @classmethod
+    def _shared_later(
+        cls, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], dense: bool, start: bool = True
+    ) -> Callable[[], BlockStructure]:
+        """:meth:`shared` in two steps: where the pool lacks the structure, its build and analysis are
+        started on the worker thread now (``start``: :meth:`_started`), and the callable returned
+        gives :meth:`shared`'s structure (the started one finished, pooled), raising as it would. For
+        a problem whose factors declare their residuals' lengths: it evaluates its first residuals
+        in between (CSAIL: the build's 0.1 ms off its first linearization)."""
         dims_, pairs = np.asarray(dims), [(np.asarray(ids), int(r)) for ids, r in factors]
         key = structure_key(dims_, pairs, dense)
-        return STRUCTURES.get(key, lambda: cls(dims_, pairs, dense=dense, inputs_digest=key))
+        started = cls._started(dims_, pairs, dense, key) if start and key not in STRUCTURES else None
+
+        def build() -> BlockStructure:
+            return started._finish() if started is not None else cls(dims_, pairs, dense=dense, inputs_digest=key)
+
+        return lambda: STRUCTURES.get(key, build)
 
     def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]:
         """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A, and

@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import numbers
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -71,6 +72,11 @@ class Factor:
         overwrite (zeroing the columns of fixed variables in place). Jacobians returned as
         a :class:`SideBySide` (slices of one array) are then read as that array without
         concatenating them (the library's fused pose factors return them so).
+    residual_dim : int, optional
+        ``k``, the length of every edge's residual, where it is known before the first
+        evaluation (the library's factors declare it): residuals of another length are then a
+        :class:`~manopt_lie.errors.ShapeError`, and the problem builds its sparsity structure on
+        a worker thread while its first residuals are evaluated.
     """
 
     variables: NDArray[np.int64]
@@ -79,6 +85,7 @@ class Factor:
     name: str = "factor"
     blocks: tuple[str, ...] | str | None = None
     fresh_jacobians: bool = False
+    residual_dim: int | None = None
 
     def __post_init__(self) -> None:
         v = np.asarray(self.variables)
@@ -88,6 +95,9 @@ class Factor:
             raise ValueError(f"{self.name}: variables must be a non-empty integer array (m, arity), got {v.shape}")
         object.__setattr__(self, "variables", v.astype(np.int64))
         object.__setattr__(self, "loss", parse_loss(self.loss))
+        r = self.residual_dim
+        if r is not None and (isinstance(r, bool) or not isinstance(r, numbers.Integral) or r < 1):
+            raise ValueError(f"{self.name}: residual_dim must be a positive integer or None, got {r!r}")
         if isinstance(self.blocks, str):
             object.__setattr__(self, "blocks", (self.blocks,) * v.shape[1])
         elif self.blocks is not None:
@@ -331,7 +341,7 @@ class LeastSquaresProblem(Problem):
 
     __slots__ = (
         "_build_lock", "_exact_hessian", "_factors", "_fixed", "_fixed_columns", "_fixed_coordinates", "_layout",
-        "_residual_dims", "_slots", "_structure", "_unit_weights", "_variables",
+        "_residual_dims", "_slots", "_started", "_structure", "_unit_weights", "_variables",
     )  # fmt: skip
 
     def __init__(
@@ -355,7 +365,9 @@ class LeastSquaresProblem(Problem):
         self._fixed_coordinates = np.flatnonzero(np.repeat(self._fixed, self._layout.dims))
         self._unit_weights = tuple(_read_only(np.ones(len(v))) for v in self._variables)
         self._structure: BlockStructure | None = None
-        self._residual_dims: tuple[int, ...] | None = None
+        declared = [f.residual_dim for f in self._factors]  # else known at the first evaluation
+        self._residual_dims = None if None in declared else tuple(int(r) for r in cast(list[int], declared))
+        self._started: Callable[[], BlockStructure] | None = None  # the structure, being built
         self._build_lock = threading.Lock()
         self._exact_hessian = hessian
         rhess = hessian if hessian is not None else self._gauss_newton_product
@@ -429,6 +441,8 @@ class LeastSquaresProblem(Problem):
         if memo is not None and same_point(memo[0], x):
             return memo[1]
         kept = self._kept(x)
+        if kept is None and self._structure is None and self._residual_dims is not None:
+            self._start_structure()  # its build overlaps the first evaluation
         key, evaluation = kept if kept is not None else (snapshot(x), self._evaluate(x))
         cost, residuals, blocks, weights = evaluation
         structure = self._structure or self._build_structure(residuals)
@@ -521,18 +535,29 @@ class LeastSquaresProblem(Problem):
             block[edges, :, start:stop] = 0.0
         return block
 
+    def _shared_structure(self, residual_dims: Sequence[int], start: bool) -> Callable[[], BlockStructure]:
+        """The structure from the pool, or built (``start``: its build started now on the worker):
+        another problem of the same graph (a repeated solve, other measurements) built it already."""
+        dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
+        shapes = list(zip(self._variables, residual_dims, strict=True))
+        return BlockStructure._shared_later(dims, shapes, int(dims.sum()) <= DENSE_MAX, start)
+
+    def _start_structure(self) -> None:
+        """Start building the structure of the declared residual lengths (finished by :meth:`_build_structure`)."""
+        with self._build_lock:
+            if self._structure is None and self._started is None and self._residual_dims is not None:
+                self._started = self._shared_structure(self._residual_dims, start=True)
+
     def _build_structure(self, residuals: list[FloatArray]) -> BlockStructure:
         """The sparsity pattern, built once (under a lock: every thread must share one
-        structure, whose ``H`` patterns a solver's symbolic analysis recognizes)."""
+        structure, whose ``H`` patterns a solver's symbolic analysis recognizes). The residuals
+        have their declared lengths where they are (:meth:`_check_residual`)."""
         with self._build_lock:
             if self._structure is None:
-                shapes = [(v, r.shape[-1]) for v, r in zip(self._variables, residuals, strict=True)]
-                dims = self._layout.dims  # a small system is stored dense: less bookkeeping than it saves
-                dense = int(dims.sum()) <= DENSE_MAX
-                # Another problem of the same graph (a repeated solve, other measurements) built it already.
-                structure = BlockStructure.shared(dims, shapes, dense=dense)
-                self._residual_dims = tuple(int(r.shape[-1]) for r in residuals)
-                self._structure = structure
+                residual_dims = tuple(int(r.shape[-1]) for r in residuals)
+                started, self._started = self._started, None
+                self._structure = (started or self._shared_structure(residual_dims, start=False))()
+                self._residual_dims = residual_dims
             return self._structure
 
     def validate(self, x: Any, *, hessian: bool = False) -> tuple[float, FloatArray]:

@@ -3,11 +3,14 @@ on problems with known minimizers."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from manopt_lie import SE2, SE3, SO3
 from manopt_lie.check import check_gradient
+from manopt_lie.errors import ShapeError
 from manopt_lie.linalg import BlockStructure, SingularSystemError
 from manopt_lie.manifolds import Euclidean, LieGroupManifold, Power, Sphere
 from manopt_lie.optim import (
@@ -440,3 +443,63 @@ def test_small_problems_store_their_normal_equations_dense():
         np.testing.assert_allclose(linear.hessian_product(u), hv, rtol=0, atol=1e-13 * np.abs(hv).max())
     res = LevenbergMarquardt().solve(small, x0)
     assert res.success
+
+
+def test_a_declared_residual_dim_is_checked():
+    """``residual_dim`` is a positive integer or ``None``; residuals of another length are a
+    ShapeError naming the factor, at the first evaluation."""
+    edges = np.array([[0, 1]])
+    for bad in (0, -3, 2.5, True, "3"):
+        with pytest.raises(ValueError, match="between: residual_dim"):
+            Factor(edges, lambda xi, xj, jac: None, name="between", residual_dim=bad)
+    problem, _, x0 = pose_chain(SE2, n=60, closures=10)
+    f = problem.factors[0]
+    declared = LeastSquaresProblem(problem.manifold, [replace(f, residual_dim=4)], fixed=[0])
+    with pytest.raises(ShapeError, match=r"between: .*expected \(m, k\) = \(\d+, 4\)"):
+        declared.linearize(x0)
+
+
+@pytest.mark.parametrize("n", [12, 200], ids=["dense", "sparse"])
+def test_declared_residual_dims_build_the_structure_before_the_first_residuals(monkeypatch, n):
+    """Declared lengths: the structure is started before any residual is evaluated, and it is the
+    structure (the pooled object itself) and the linearization of the same factors undeclared."""
+    from manopt_lie.linalg import clear_caches
+
+    problem, _, x0 = pose_chain(SE3, n=n, closures=n // 4, noise=0.01)
+    undeclared = problem.factors[0]
+    events: list[str] = []
+    started = BlockStructure._shared_later.__func__
+
+    def spy_start(cls, *args):
+        events.append("structure")
+        return started(cls, *args)
+
+    def spy_residual(*args, jac):
+        events.append("residual")
+        return undeclared.residual(*args, jac=jac)
+
+    monkeypatch.setattr(BlockStructure, "_shared_later", classmethod(spy_start))
+    clear_caches()
+    declared = replace(undeclared, residual=spy_residual, residual_dim=6)
+    first = LeastSquaresProblem(problem.manifold, [declared], fixed=[0])
+    lin = first.linearize(x0)
+    assert events == ["structure", "residual"]
+    again = problem.linearize(x0)  # undeclared: built after its residuals, here from the pool
+    assert problem.structure is first.structure
+    np.testing.assert_array_equal(lin.hessian.toarray(), again.hessian.toarray())
+    np.testing.assert_array_equal(lin.grad, again.grad)
+    clear_caches()
+
+
+def test_an_edge_on_one_variable_twice_is_refused_alike_declared_or_not():
+    problem, _, x0 = pose_chain(SE2, n=200, closures=5)
+    f = problem.factors[0]
+    edges = f.variables.copy()
+    edges[7] = [5, 5]
+    messages = []
+    for r in (None, 3):
+        bad = LeastSquaresProblem(problem.manifold, [replace(f, variables=edges, residual_dim=r)], fixed=[0])
+        with pytest.raises(ValueError, match="factor 0, edge 7: touches variable 5 in two slots") as err:
+            bad.linearize(x0)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1]
