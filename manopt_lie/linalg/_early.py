@@ -7,7 +7,9 @@ values of ``H``, only the block pattern, which :class:`~manopt_lie.linalg.BlockS
 soon as it is built, before the first linearization assembles ``H`` and ``g`` (CSAIL: 0.3 ms,
 about what the analysis takes). So the structure starts these steps in C (``patterns.c:
 early_start``) on a worker thread, which needs no GIL, and the first analysis takes what they made
-(:meth:`EarlyAnalysis.result`) instead of making it.
+(:meth:`EarlyAnalysis.result`) instead of making it. A structure whose build can wait (a problem's,
+its residuals' lengths declared) has the thread build it first, while the problem evaluates its
+first residuals (:meth:`EarlyAnalysis.start_with`).
 
 Each step runs where the one before succeeded; one that did not run or failed leaves its result
 ``None``, and the analysis makes it as before. ``B``'s factor and triangle are made only where
@@ -142,6 +144,7 @@ class EarlyAnalysis:
 
     @staticmethod
     def _runs(dims: NDArray[np.intp], dimension: int) -> bool:
+        """Whether an analysis can run for these variables: of one dimension, AMD and the C here."""
         return (
             dimension >= 1 and dims.dtype == np.int64 and dims.flags.c_contiguous
             and _patterns._library() is not None and _amd.amd_order_address() is not None
