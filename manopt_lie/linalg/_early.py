@@ -99,23 +99,27 @@ class EarlyAnalysis:
     ) -> None:  # fmt: skip
         self._library = library = _patterns._library()  # found by start(), with AMD
         nv, n = dims.size, indptr.size - 1
-        entries = int(indptr[-1]) if build is None else build.room  # at most, before the build
-        size = (entries + n) // 2  # the triangle, its diagonal included
-        # What the thread writes, kept until it is joined (as what it reads): cut from two buffers.
-        wide, at_wide = _patterns.carve(np.int64, [nv, nv, nv, n, 3, 2, 1])
-        narrow, at_narrow = _patterns.carve(np.int32, [nv, n, n + 1, size, size])
-        *self._outputs, self._perm, self._status, cost, self._build_status = wide
+        # What the thread writes, kept until it is joined (as what it reads), and its arguments: cut
+        # from two buffers, the build's where it has them.
+        if build is not None and build.analysis is not None:
+            wide, at_wide, narrow, at_narrow = build.analysis
+        else:
+            lengths64, lengths32 = _patterns.analysis_layout(nv, n, int(indptr[-1]))
+            wide, at_wide = _patterns.carve(np.int64, lengths64)
+            narrow, at_narrow = _patterns.carve(np.int32, lengths32)
+        *self._outputs, self._perm, self._status, cost, self._build_status, args = wide
         self._cost = cost.view(np.float64)  # (lnz, fl)
         self._order32, self._columns, *triangle = narrow
         self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
         self._inputs = (dims, indptr, block_indptr, block_rows, build)
         self._status_at, self._build_status_at = at_wide[4], at_wide[6]  # for __del__ (also at exit) and built()
         at = _patterns._at
-        handle = library.early_start(
-            None if build is None else build.address, _amd.amd_order_address(), nv, dimension,
-            *(at(a) for a in self._inputs[:4]), _patterns.SIMPLICIAL_FILL, _DEFAULTS["supernodal_switch"], size,
-            at_narrow[0], *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
-        )  # fmt: skip
+        args[:] = [
+            _amd.amd_order_address(), nv, dimension, *(at(a) for a in self._inputs[:4]), _patterns.SIMPLICIAL_FILL,
+            triangle[1].size, at_narrow[0], *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
+        ]  # fmt: skip
+        build_at = None if build is None else build.address
+        handle = library.early_start(build_at, at_wide[7], _DEFAULTS["supernodal_switch"])
         if not handle:
             raise MemoryError("patterns.c: no memory to start the analysis")
         self._handle = handle
@@ -136,11 +140,17 @@ class EarlyAnalysis:
 
     @classmethod
     def start_with(cls, dims: NDArray[np.intp], dimension: int, build: StructureBuild) -> EarlyAnalysis | None:
-        """An analysis started after ``build`` on the thread, as :meth:`start` would start one after it
-        (its room bounding the entries), or ``None``."""
-        if build.room > EARLY_ENTRIES or not cls._runs(dims, dimension):
+        """An analysis started after ``build`` on the thread, as :meth:`start` would start one after it,
+        where ``build`` holds its arrays (:meth:`entries`); else ``None``."""
+        if build.analysis is None:
             return None
         return cls(dims, dimension, build.indptr, build.block_ptr, build.candidates, build)
+
+    @classmethod
+    def entries(cls, dims: NDArray[np.intp], dimension: int) -> int:
+        """The most entries of ``H`` for which a structure of these variables starts an analysis:
+        :data:`EARLY_ENTRIES`, or 0 where none runs."""
+        return EARLY_ENTRIES if cls._runs(dims, dimension) else 0
 
     @staticmethod
     def _runs(dims: NDArray[np.intp], dimension: int) -> bool:

@@ -28,7 +28,7 @@ from .. import _native
 from . import _factors
 from ._factors import FactorIndex
 
-__all__ = ["StructureBuild", "block_symbolic", "hessian_pattern", "permuted_block_triangle"]
+__all__ = ["StructureBuild", "analysis_layout", "block_symbolic", "hessian_pattern", "permuted_block_triangle"]
 
 SIMPLICIAL_FILL = 8
 """The most blocks of ``L`` per stored block of ``H`` :func:`block_symbolic` counts before it leaves
@@ -46,10 +46,22 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
     "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
-    "early_start": (_P, [_P, _P, _I, _I, _P, _P, _P, _P, _I, ctypes.c_double, _I, *[_P] * 10]),
+    "early_start": (_P, [_P, _P, ctypes.c_double]),
     "early_built": (ctypes.c_int, [_P, _P]),
     "early_join": (ctypes.c_int, [_P, _P]),
 }
+
+
+ANALYSIS_ARGUMENTS = 19
+"""``patterns.c: early_start``'s packed arguments."""
+
+
+def analysis_layout(nv: int, n: int, entries: int) -> tuple[list[int], list[int]]:
+    """The lengths of the int64 and of the int32 arrays an early analysis (``_early``) of ``nv`` variables
+    and ``n`` coordinates, ``H`` holding at most ``entries`` entries, keeps: its outputs, statuses and
+    packed arguments, and its triangle (:func:`carve`)."""
+    size = (entries + n) // 2  # the triangle, its diagonal included
+    return [nv, nv, nv, n, 3, 2, 1, ANALYSIS_ARGUMENTS], [nv, n, n + 1, size, size]
 
 
 @functools.cache
@@ -78,7 +90,8 @@ class StructureBuild:
     """A structure's compiled build (``patterns.c: build_structure``), planned: its arrays made empty
     and its arguments packed in one array for the C, which fills them now (:meth:`run`) or on the
     worker thread, before the structure's analysis there (``_early.EarlyAnalysis``, ``build=``),
-    while the caller goes on. :meth:`result` then reads them. Made by :func:`hessian_pattern`.
+    while the caller goes on. :meth:`result` then reads them. Made by :func:`hessian_pattern`, with
+    the arrays of that analysis (``analysis``) cut from the same two buffers.
 
     Attributes
     ----------
@@ -87,9 +100,14 @@ class StructureBuild:
     block_ptr, candidates, indptr : ndarray of int32
         The block pattern's ``indptr``, the room its rows are gathered in (the ``nb`` rows first,
         once built) and ``H``'s ``indptr``: what the analysis reads.
+    analysis : tuple or None
+        The analysis's int64 arrays and their addresses, then its int32 arrays and theirs
+        (:func:`analysis_layout`), where asked for.
     """
 
-    def __init__(self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex]) -> None:
+    def __init__(
+        self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex], analysis: bool = False
+    ) -> None:
         nv, k = dims.size, len(factors)
         self._factors, self._dims, self.n, self.room = factors, dims, n, room
         ids = self._ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
@@ -98,20 +116,23 @@ class StructureBuild:
         # pointers they point to (the edges, the positions, the columns); then nb and nnz, the offsets.
         head = [*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)]
         packed = 17 + 3 * k
-        (args, self._sizes, self._offsets), at64 = carve(np.int64, [packed + len(head), 2, nv + 1])
+        wide, narrow = analysis_layout(nv, n, room) if analysis else ([], [])
+        (args, self._sizes, self._offsets, *wide_arrays), at64 = carve(np.int64, [packed + len(head), 2, nv + 1, *wide])
         self.candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
         # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
         # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
         self.block_ptr, self.indptr = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32)
         self._indices = np.empty(room, np.int32)
         lengths = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
-        (self._diagonal, *self._scatters), at = carve(np.int32, lengths)
+        (self._diagonal, *arrays), at = carve(np.int32, [*lengths, *narrow])
+        self._scatters = arrays[: 2 * k]
+        self.analysis = (wide_arrays, at64[3:], arrays[2 * k :], at[1 + 2 * k :]) if analysis else None
         self._dims64 = np.ascontiguousarray(dims, dtype=np.int64)
         self.address, heads, pointers = at64[0], at64[0] + 8 * packed, at64[0] + 8 * 17
         args[:] = [
             nv, k, _at(self._dims64), at64[2], heads, heads + 8 * k, heads + 16 * k, pointers,
             _at(self.block_ptr), _at(self.candidates), _at(self.indptr), _at(self._indices), room, at[0],
-            pointers + 8 * k, pointers + 16 * k, at64[1], *(_at(a) for a in ids), *at[1:], *head,
+            pointers + 8 * k, pointers + 16 * k, at64[1], *(_at(a) for a in ids), *at[1 : 1 + 2 * k], *head,
         ]  # fmt: skip
 
     def run(self) -> Pattern:
@@ -147,10 +168,11 @@ class StructureBuild:
 
 
 def hessian_pattern(
-    dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex]
+    dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex], analysis_entries: int = 0
 ) -> StructureBuild | None:
     """The compiled build of a structure's arrays from its variables' dimensions (``n`` in all,
-    ``squares`` their squares' sum) and factor types, planned (:class:`StructureBuild`), or ``None``."""
+    ``squares`` their squares' sum) and factor types, planned (:class:`StructureBuild`, with the
+    arrays of an analysis where ``H`` holds at most ``analysis_entries`` entries), or ``None``."""
     # H's entries where no two edges join the same variables: the diagonal blocks, and each edge's
     # blocks off the diagonal (W² less the slots' own d²); fewer where some do.
     room = squares + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
@@ -159,7 +181,7 @@ def hessian_pattern(
         or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors)
     ):  # fmt: skip
         return None
-    return StructureBuild(dims, n, room, factors)
+    return StructureBuild(dims, n, room, factors, room <= analysis_entries)
 
 
 def _int32(*arrays: NDArray[np.signedinteger]) -> bool:

@@ -582,20 +582,23 @@ static int early_worker(void) { /* with the lock held: whether a worker runs, ma
 }
 
 /* Starts the analysis, after the build if one is given (on the caller's thread where no worker can
- * be made), and returns its handle, for early_built and early_join; NULL without memory. */
-void* early_start(const i64* build, void* amd, i64 nv, i64 d, const i64* dims, const i32* h_indptr, const i32* bptr,
-                  const i32* brows, i64 fill, double supernodal_switch, i64 size, i32* amd_order, i64* order,
-                  i64* variables, i64* counts, i32* indptr, i32* rows, i32* gather, i64* perm, i32* colcount,
-                  double* cost) {
+ * be made), and returns its handle, for early_built and early_join; NULL without memory. Its
+ * arguments are packed in args, addresses as integers, as _early.EarlyAnalysis writes them: amd,
+ * nv, d, dims, h_indptr, bptr, brows, fill, size, then the outputs amd_order, order, variables,
+ * counts, indptr, rows, gather, perm, colcount and cost. */
+#define ARG(i, type) ((type)(intptr_t)args[i])
+void* early_start(const i64* build, const i64* args, double supernodal_switch) {
   early_analysis* a = malloc(sizeof(early_analysis));
   if (!a) return NULL;
   a->next = NULL, a->done = 0;
   a->build = build, a->built = build == NULL, a->build_status = 0;
-  a->amd = (amd_order_fn)amd;
-  a->nv = nv, a->d = d, a->fill = fill, a->size = size, a->supernodal_switch = supernodal_switch;
-  a->dims = dims, a->h_indptr = h_indptr, a->bptr = bptr, a->brows = brows;
-  a->amd_order = amd_order, a->order = order, a->variables = variables, a->counts = counts;
-  a->indptr = indptr, a->rows = rows, a->gather = gather, a->perm = perm, a->colcount = colcount, a->cost = cost;
+  a->amd = ARG(0, amd_order_fn);
+  a->nv = args[1], a->d = args[2], a->fill = args[7], a->size = args[8], a->supernodal_switch = supernodal_switch;
+  a->dims = ARG(3, const i64*), a->h_indptr = ARG(4, const i32*), a->bptr = ARG(5, const i32*);
+  a->brows = ARG(6, const i32*), a->amd_order = ARG(9, i32*), a->order = ARG(10, i64*);
+  a->variables = ARG(11, i64*), a->counts = ARG(12, i64*), a->indptr = ARG(13, i32*), a->rows = ARG(14, i32*);
+  a->gather = ARG(15, i32*), a->perm = ARG(16, i64*), a->colcount = ARG(17, i32*), a->cost = ARG(18, double*);
+#undef ARG
   a->status[0] = a->status[1] = a->status[2] = NOT_RUN;
   pthread_mutex_lock(&early_lock);
   a->forks = early_forks;

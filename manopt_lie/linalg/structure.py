@@ -140,11 +140,12 @@ class BlockStructure:
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [FactorIndex(a, int(r), s) for a, s, (_, r) in zip(ids, slots, factors, strict=True)]
         squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
-        build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors)
+        dimension = lowest if uniform else 0
+        entries = EarlyAnalysis.entries(self.dims, dimension) if on_worker else 0  # its arrays cut with the build's
+        build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors, entries)
         if build is None and uniform:
             for k, a in enumerate(ids):
                 check(k, a, self.dims)
-        dimension = lowest if uniform else 0
         if build is not None and on_worker:  # built, then analysed, on the worker
             self._early = EarlyAnalysis.start_with(self.dims, dimension, build)
             self._build = build if self._early is not None else None
