@@ -505,22 +505,33 @@ typedef struct early_analysis {
   double* cost;
   i64 status[3];
   const i64* build; /* build_structure's packed arguments, or NULL */
-  int built;        /* the build done (early_built), or none to do */
+  int taken;        /* the build taken by the worker or by early_built's caller, or none to do */
+  int built;        /* the build done, or none to do */
   i64 build_status;
 } early_analysis;
 
 static pthread_mutex_t early_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t early_queued = PTHREAD_COND_INITIALIZER, early_done = PTHREAD_COND_INITIALIZER;
 
-static void early_run(early_analysis* a) {
-  if (a->build) { /* the structure first: the analysis reads its block pattern and H's indptr */
-    int status = build_structure(a->build);
+/* The build, by whichever thread took it (under the lock); done, it tells the others. */
+static void early_build(early_analysis* a) {
+  int status = build_structure(a->build);
+  pthread_mutex_lock(&early_lock);
+  a->build_status = status, a->built = 1;
+  pthread_cond_broadcast(&early_done);
+  pthread_mutex_unlock(&early_lock);
+}
+
+/* The analysis, after the build (build: this thread took it; else waited for where another did). */
+static void early_run(early_analysis* a, int build) {
+  if (build) {
+    early_build(a);
+  } else if (a->build) {
     pthread_mutex_lock(&early_lock);
-    a->build_status = status, a->built = 1;
-    pthread_cond_broadcast(&early_done);
+    while (!a->built) pthread_cond_wait(&early_done, &early_lock);
     pthread_mutex_unlock(&early_lock);
-    if (status != 0) return;
   }
+  if (a->build_status != 0) return;
   i64 nv = a->nv, d = a->d;
   a->status[0] = a->amd((i32)nv, a->bptr, a->brows, a->amd_order, NULL, NULL);
   if (a->status[0] != 0 && a->status[0] != 1) return; /* AMD_OK, AMD_OK_BUT_JUMBLED */
@@ -559,8 +570,10 @@ static void* early_work(void* unused) {
     early_analysis* a = early_head;
     early_head = a->next;
     if (!early_head) early_tail = NULL;
+    int build = !a->taken;
+    a->taken = 1;
     pthread_mutex_unlock(&early_lock);
-    early_run(a);
+    early_run(a, build);
     pthread_mutex_lock(&early_lock);
     a->done = 1;
     pthread_cond_broadcast(&early_done);
@@ -591,7 +604,7 @@ void* early_start(const i64* build, const i64* args, double supernodal_switch) {
   early_analysis* a = malloc(sizeof(early_analysis));
   if (!a) return NULL;
   a->next = NULL, a->done = 0;
-  a->build = build, a->built = build == NULL, a->build_status = 0;
+  a->build = build, a->taken = a->built = build == NULL, a->build_status = 0;
   a->amd = ARG(0, amd_order_fn);
   a->nv = args[1], a->d = args[2], a->fill = args[7], a->size = args[8], a->supernodal_switch = supernodal_switch;
   a->dims = ARG(3, const i64*), a->h_indptr = ARG(4, const i32*), a->bptr = ARG(5, const i32*);
@@ -612,16 +625,21 @@ void* early_start(const i64* build, const i64* args, double supernodal_switch) {
   if (queued) /* after the unlock: the worker woken does not block on the lock (CSAIL: 0.015 -> 0.01 ms) */
     pthread_cond_signal(&early_queued);
   else
-    early_run(a), a->done = 1;
+    early_run(a, !a->taken), a->done = 1;
   return a;
 }
 
-/* Waits for the analysis's build and writes its status (build_structure's). Returns 0; -1 in a
- * process forked from the one that started it (as early_join). */
+/* The analysis's build, done, its status written (build_structure's): made here where the worker
+ * has not taken it yet (it woke late: on a VM an idle vCPU may take 0.1 ms or more), else waited
+ * for. Returns 0; -1 in a process forked from the one that started it (as early_join). */
 int early_built(void* handle, i64* status) {
   early_analysis* a = handle;
   pthread_mutex_lock(&early_lock);
-  int ours = a->forks == early_forks;
+  int ours = a->forks == early_forks, build = ours && !a->taken;
+  a->taken |= build;
+  pthread_mutex_unlock(&early_lock);
+  if (build) early_build(a);
+  pthread_mutex_lock(&early_lock);
   while (ours && !a->built) pthread_cond_wait(&early_done, &early_lock);
   pthread_mutex_unlock(&early_lock);
   *status = a->build_status;

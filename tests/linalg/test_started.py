@@ -168,3 +168,16 @@ def test_a_forked_child_builds_a_started_structure_itself():
     S._finish()  # the parent's own, unharmed
     assert_same_structure(S, T)
     assert_same(S._early_analysis(), expected(S))
+
+
+def test_a_build_the_busy_worker_has_not_taken_is_made_by_the_caller():
+    """The worker busy with other structures' analyses: the caller, finishing first, builds the
+    structure itself (``early_built``) and the worker then only analyses it; the same arrays and
+    analysis either way."""
+    busy = [started(*graph(seed, 20000, 3, False)) for seed in range(3)]  # queued ahead, ms each
+    dims, factors = graph(7, 300, 3, True)
+    S = started(dims, factors)._finish()
+    assert_same_structure(S, BlockStructure(dims, factors))
+    assert_same(S._early_analysis(), expected(S))
+    for B in busy:
+        assert_same_structure(B._finish(), BlockStructure(*graph(busy.index(B), 20000, 3, False)))
