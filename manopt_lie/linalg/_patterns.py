@@ -73,10 +73,6 @@ def _library() -> Any:
 _at = _native.address
 
 
-def _pointers(arrays: Sequence[np.ndarray]) -> Any:
-    return (ctypes.c_void_p * len(arrays))(*(_at(a) for a in arrays))
-
-
 def carve(dtype: type[np.number], sizes: Sequence[int]) -> tuple[list[NDArray[Any]], list[int]]:
     """Arrays of these sizes cut from one new buffer, and their addresses: one allocation and one
     address taken, not one per array (each ~1 µs in a loop, several in a cold solve)."""
@@ -95,8 +91,8 @@ class StructureBuild:
 
     Attributes
     ----------
-    n, room : int
-        ``H``'s order and the most entries it may store (no two edges joining the same variables).
+    room : int
+        The most entries ``H`` may store (no two edges joining the same variables).
     block_ptr, candidates, indptr : ndarray of int32
         The block pattern's ``indptr``, the room its rows are gathered in (the ``nb`` rows first,
         once built) and ``H``'s ``indptr``: what the analysis reads.
@@ -109,7 +105,7 @@ class StructureBuild:
         self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex], analysis: bool = False
     ) -> None:
         nv, k = dims.size, len(factors)
-        self._factors, self._dims, self.n, self.room = factors, dims, n, room
+        self._factors, self._dims, self.room = factors, dims, room
         ids = self._ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
         arities = [a.shape[1] for a in ids]
         # m, arity and the slots' dimensions of every factor, after build's 17 arguments and the 3 k

@@ -637,11 +637,9 @@ int early_built(void* handle, i64* status) {
   pthread_mutex_lock(&early_lock);
   int ours = a->forks == early_forks, build = ours && !a->taken;
   a->taken |= build;
+  while (ours && !build && !a->built) pthread_cond_wait(&early_done, &early_lock);
   pthread_mutex_unlock(&early_lock);
   if (build) early_build(a);
-  pthread_mutex_lock(&early_lock);
-  while (ours && !a->built) pthread_cond_wait(&early_done, &early_lock);
-  pthread_mutex_unlock(&early_lock);
   *status = a->build_status;
   return ours ? 0 : -1;
 }

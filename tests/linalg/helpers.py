@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable
+
 import numpy as np
 
 from manopt_lie.linalg import BlockStructure
@@ -94,3 +97,27 @@ def pose_graph(
         blocks.append(np.eye(d)[None])
         residuals.append(np.zeros((1, d)))
     return BlockStructure(np.full(n_poses, d), factors), blocks, residuals
+
+
+def structure_arrays(S: BlockStructure) -> list[np.ndarray]:
+    """Every index array of a structure: offsets, block pattern, ``H``'s pattern and diagonal
+    positions, and each factor's scatters into ``H.data`` and ``g``."""
+    scatters = [a for h, g in zip(S._hess_scatter, S._grad_scatter, strict=True) for a in (h.whole, g)]
+    return [S.offsets, *S.block_pattern, S.indptr, S.indices, S.diagonal_positions, *scatters]
+
+
+def assert_same_structure(S: BlockStructure, T: BlockStructure) -> None:
+    """The same index arrays, entry for entry and dtype for dtype."""
+    for a, b in zip(structure_arrays(S), structure_arrays(T), strict=True):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+    assert S.nnz == T.nnz and S.n == T.n
+
+
+def in_threads(run: Callable[[int], None], count: int) -> None:
+    """``run(i)`` on ``count`` threads at once, ``i = 0 … count − 1``, all joined."""
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(count)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()

@@ -13,7 +13,7 @@ import pytest
 
 from manopt_lie.linalg import BlockStructure, CholeskySolver, _amd, _cholmod, _early, _patterns, clear_caches
 
-from .helpers import pose_graph, random_factor_graph
+from .helpers import in_threads, pose_graph, random_factor_graph
 
 pytestmark = [
     pytest.mark.skipif(_patterns._library() is None, reason="no C compiler here"),
@@ -148,11 +148,7 @@ def test_many_analyses_from_several_threads(rng):
         with lock:
             structures.extend(made)
 
-    threads = [threading.Thread(target=build, args=(seed,)) for seed in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    in_threads(build, 4)
     assert len(structures) == 20
     for S in structures:
         assert_same(S._early_analysis(), expected(S))

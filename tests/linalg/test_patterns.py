@@ -13,7 +13,7 @@ from manopt_lie.linalg._factors import coordinates, same_buffer
 from manopt_lie.linalg._triangles import permuted_block_triangle
 from manopt_lie.linalg.selected_inverse import _cholmod_factor
 
-from .helpers import pose_graph, random_factor_graph, random_values
+from .helpers import assert_same_structure, pose_graph, random_factor_graph, random_values
 
 compiled = pytest.mark.skipif(_patterns._library() is None, reason="no C compiler here")
 direct = pytest.mark.skipif(not _cholmod.available(), reason="CHOLMOD cannot be called directly here")
@@ -41,14 +41,7 @@ def test_the_compiled_structure_is_numpys(monkeypatch, seed):
     rng = np.random.default_rng(seed)
     dims, factors = with_ternary(rng, n_vars=int(rng.integers(9, 60)))
     made, reference = BlockStructure(dims, factors), numpy_structure(monkeypatch, dims, factors)
-    pairs = [(made.indptr, reference.indptr), (made.indices, reference.indices),
-             (made.diagonal_positions, reference.diagonal_positions)]  # fmt: skip
-    pairs += zip(made.block_pattern, reference.block_pattern, strict=True)
-    pairs += [(a.whole, b.whole) for a, b in zip(made._hess_scatter, reference._hess_scatter, strict=True)]
-    pairs += zip(made._grad_scatter, reference._grad_scatter, strict=True)
-    for a, b in pairs:
-        assert a.dtype == b.dtype
-        np.testing.assert_array_equal(a, b)
+    assert_same_structure(made, reference)
     blocks, residuals, weights = random_values(rng, dims, factors)
     (H1, g1), (H2, g2) = (s.normal_equations(blocks, residuals, weights) for s in (made, reference))
     np.testing.assert_array_equal(H1.data, H2.data)

@@ -15,6 +15,7 @@ import pytest
 from manopt_lie.linalg import BlockStructure, _amd, _patterns, clear_caches
 from manopt_lie.linalg._analyses import STRUCTURES, structure_key
 
+from .helpers import assert_same_structure, in_threads, structure_arrays
 from .test_early import assert_same, expected
 
 pytestmark = [
@@ -40,19 +41,6 @@ def graph(seed: int, n: int, d: int, repeats: bool) -> tuple[np.ndarray, list[tu
     if repeats:
         edges = np.concatenate([edges, edges[-3:], edges[-1:, ::-1]])
     return np.full(n, d), [(edges, d), (rng.choice(n, size=(5, 1)), 2 * d)]
-
-
-def arrays(S: BlockStructure) -> list[np.ndarray]:
-    """Every index array of a structure."""
-    scatters = [a for h, g in zip(S._hess_scatter, S._grad_scatter, strict=True) for a in (h.whole, g)]
-    return [S.offsets, *S.block_pattern, S.indptr, S.indices, S.diagonal_positions, *scatters]
-
-
-def assert_same_structure(S: BlockStructure, T: BlockStructure) -> None:
-    for a, b in zip(arrays(S), arrays(T), strict=True):
-        assert a.dtype == b.dtype
-        np.testing.assert_array_equal(a, b)
-    assert S.nnz == T.nnz and S.n == T.n
 
 
 def started(dims: np.ndarray, factors: list[tuple[np.ndarray, int]]) -> BlockStructure:
@@ -132,11 +120,7 @@ def test_structures_started_from_several_threads():
             with lock:
                 made.append((S, seed))
 
-    threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    in_threads(run, 4)
     assert len(made) == 20
     for S, seed in made:
         dims, factors = graph(seed, S.dims.size, 3, seed % 10 % 2 == 1)
@@ -147,7 +131,7 @@ def test_structures_started_from_several_threads():
 def _child(S: BlockStructure, queue: multiprocessing.Queue) -> None:
     """In a forked child: the parent's build is not waited for; the child builds the structure itself."""
     S._finish()
-    queue.put([a.tolist() for a in arrays(S)] + [S._early_analysis().order is None])
+    queue.put([a.tolist() for a in structure_arrays(S)] + [S._early_analysis().order is None])
 
 
 @pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork here")
@@ -162,7 +146,7 @@ def test_a_forked_child_builds_a_started_structure_itself():
     child.join(timeout=60)
     assert child.exitcode == 0
     T = BlockStructure(dims, factors)
-    for a, b in zip(made, arrays(T), strict=True):
+    for a, b in zip(made, structure_arrays(T), strict=True):
         np.testing.assert_array_equal(a, b)
     assert parents_unread  # the analysis stayed in the parent: the child's solver makes its own
     S._finish()  # the parent's own, unharmed
