@@ -11,8 +11,8 @@ solver at a time: a solver takes an idle backend of its pattern, or analyses ane
 gives it back when it is garbage-collected or analyses another pattern. Concurrent
 solvers of one pattern (threads) thus each get their own.
 
-Patterns are keyed by ``(backend, n, nnz, index dtypes, BLAKE2b(indptr, indices))`` (for a
-structure's own pattern, the digest of its blocks and their sizes instead). The pool keeps
+Patterns are keyed by ``(backend, n, nnz, index dtypes, SHA-256(indptr, indices))`` (for a
+structure's own pattern, the structure's inputs instead: :class:`StructureInputs`). The pool keeps
 at most :data:`MAX_IDLE` idle backends and :data:`MAX_IDLE_NNZ` stored entries of
 ``H`` in all (least recently returned dropped first): a big factor is not kept alive
 for a pattern that may never come back.
@@ -20,7 +20,7 @@ for a pattern that may never come back.
 A :class:`~manopt_lie.linalg.BlockStructure` (the pattern of ``H`` and the scatter maps that fill
 it) depends only on the variables' dimensions and on each factor type's edges and residual
 length, and nothing changes it once built, so :data:`STRUCTURES` shares one among every problem
-of the same graph (:func:`structure_key`), under the same bounds. :func:`clear_caches` empties
+of the same graph (keyed by its inputs), under the same bounds. :func:`clear_caches` empties
 both pools: the next solve of any pattern pays its whole set-up.
 """
 
@@ -38,19 +38,19 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from .structure import BlockStructure
 
-__all__ = ["ANALYSES", "STRUCTURES", "AnalysisPool", "StructurePool", "clear_caches", "pattern_key", "structure_key"]
+__all__ = ["ANALYSES", "STRUCTURES", "AnalysisPool", "StructureInputs", "StructurePool", "clear_caches", "pattern_key"]
 
 MAX_IDLE = 8
 MAX_IDLE_NNZ = 4_000_000
 
-Key = tuple[str, int, int, str, bytes]
+Key = tuple[str, int, int, str, "bytes | StructureInputs"]
 V = TypeVar("V")
 
 
 def digest(*arrays: NDArray[Any]) -> bytes:
     """The first 128 bits of a SHA-256 digest of the arrays' bytes (no copy of contiguous arrays).
     SHA-256, not BLAKE2b: with the CPU's SHA instructions (current x86 and ARM) it hashes 2.5×
-    faster here (a pose graph's edges, 19 kB: 11 µs against 28 µs)."""
+    faster here (19 kB: 11 µs against 28 µs)."""
     h = hashlib.sha256()
     for a in arrays:
         # .data, not memoryview(...): NumPy's stubs give ndarray a __buffer__ on Python 3.12+ only.
@@ -59,13 +59,14 @@ def digest(*arrays: NDArray[Any]) -> bytes:
 
 
 def pattern_key(
-    backend: str, indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger], blocks: bytes | None = None
-) -> Key:
+    backend: str, indptr: NDArray[np.signedinteger], indices: NDArray[np.signedinteger],
+    inputs: StructureInputs | None = None,
+) -> Key:  # fmt: skip
     """The pool's key of a CSC pattern: its sizes, index dtype and a digest of its arrays, or
-    ``blocks``, the digest of the blocks it expands (``BlockStructure.pattern_digest``: ``d²``
-    times fewer bytes to hash; 1.6 ms → 0.05 ms on parking-garage)."""
+    ``inputs``, the key of the structure whose own pattern it is (which determines it: no pass
+    over its arrays; a digest of parking-garage's coordinates takes 1.6 ms)."""
     dtypes = f"{indptr.dtype.str}{indices.dtype.str}"
-    key = digest(indptr, indices) if blocks is None else blocks
+    key = digest(indptr, indices) if inputs is None else inputs
     return backend, int(indptr.size - 1), int(indices.size), dtypes, key
 
 
@@ -124,15 +125,43 @@ ANALYSES = AnalysisPool()
 """The process's pool, used by every :class:`~manopt_lie.linalg.CholeskySolver`."""
 
 
-def structure_key(dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool) -> bytes:
-    """The key of a block structure's inputs: the variables' dimensions, every factor type's edge
-    array (shape and dtype included) and residual length, and whether ``H`` is stored dense."""
-    shapes = repr([(ids.shape, ids.dtype.str, int(r)) for ids, r in factors] + [dims.shape, dims.dtype.str, dense])
-    return digest(dims, *(ids for ids, _ in factors)) + shapes.encode()
+class StructureInputs:
+    """What determines a block structure — the variables' dimensions, each factor type's edge array
+    and residual length, the dense flag — as a key of the pools: hashed by the arrays' shapes and
+    kinds alone, equal where every array is equal too (NumPy's comparison, made only against a key
+    of the same hash). A cold solve's key costs ~2 µs instead of a digest of every edge (SHA-256:
+    44 µs on CSAIL, 72 µs on intel, cold), a warm one's look-up a comparison at memory speed.
+
+    Parameters
+    ----------
+    dims : ndarray of int, shape (n_vars,)
+    factors : sequence of (var_ids, residual_dim)
+        As :class:`~manopt_lie.linalg.BlockStructure`'s. The key holds the arrays, not copies: a
+        pooled key holds its structure's own (read-only) arrays, a key for a look-up its caller's.
+    dense : bool
+    """
+
+    __slots__ = ("_arrays", "_hash", "_shapes")
+
+    def __init__(self, dims: NDArray[Any], factors: Sequence[tuple[NDArray[Any], int]], dense: bool) -> None:
+        self._arrays = (dims, *(ids for ids, _ in factors))
+        kinds = tuple((a.shape, a.dtype.kind) for a in self._arrays)
+        self._shapes = (bool(dense), kinds, tuple(int(r) for _, r in factors))
+        self._hash = hash(self._shapes)
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __eq__(self, other: object) -> bool:
+        if self is other:
+            return True
+        if not isinstance(other, StructureInputs) or self._shapes != other._shapes:
+            return False
+        return all(a is b or np.array_equal(a, b) for a, b in zip(self._arrays, other._arrays, strict=True))
 
 
 class StructurePool:
-    """Built block structures by :func:`structure_key`, shared (never lent: nothing writes to a
+    """Built block structures by their inputs (:class:`StructureInputs`), shared (never lent: nothing writes to a
     built structure, and one structure serves many threads); thread-safe. At most ``max_kept``
     structures with ``max_kept_nnz`` entries of ``H`` in all are kept, least recently used
     dropped first.
@@ -145,27 +174,28 @@ class StructurePool:
 
     def __init__(self, max_kept: int = MAX_IDLE, max_kept_nnz: int = MAX_IDLE_NNZ) -> None:
         self.max_kept, self.max_kept_nnz = max_kept, max_kept_nnz
-        self._kept: OrderedDict[bytes, BlockStructure] = OrderedDict()
+        self._kept: OrderedDict[StructureInputs, BlockStructure] = OrderedDict()
         self._lock = threading.Lock()
         self.hits = self.misses = 0
 
-    def get(self, key: bytes, build: Callable[[], BlockStructure]) -> BlockStructure:
-        """The structure of ``key``: the pooled one, else ``build()``'s (then pooled if small enough)."""
+    def get(self, key: StructureInputs, build: Callable[[], BlockStructure]) -> BlockStructure:
+        """The structure of ``key``: the pooled one, else ``build()``'s, then pooled (if small
+        enough) under its own key: the arrays of ``key`` are the caller's, which it may change."""
         with self._lock:
             found = self._kept.get(key)
             if found is not None:
-                self._kept.move_to_end(key)
+                self._kept.move_to_end(found._inputs)  # the pooled key itself: found without comparing again
                 self.hits += 1
                 return found
             self.misses += 1
         built = build()  # outside the lock: a large structure takes seconds
         if built.nnz <= self.max_kept_nnz:
             with self._lock:
-                self._kept[key] = built
+                self._kept[built._inputs] = built
                 _evict_oldest(self._kept, lambda structure: structure.nnz, self.max_kept, self.max_kept_nnz)
         return built
 
-    def __contains__(self, key: bytes) -> bool:
+    def __contains__(self, key: StructureInputs) -> bool:
         """Whether a structure of ``key`` is kept (counted neither a hit nor a miss)."""
         with self._lock:
             return key in self._kept

@@ -215,8 +215,8 @@ class CholeskySolver:
             impl = _Dense(H.indptr, H.indices)
         else:
             kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
-            blocks = self._structure.pattern_digest() if trusted and self._structure is not None else None
-            key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, blocks)
+            inputs = self._structure._inputs if trusted and self._structure is not None else None
+            key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, inputs)
             impl = ANALYSES.acquire(key)
         if impl is None:
             if not trusted:

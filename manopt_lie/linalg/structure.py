@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ShapeError
 from . import _factors
 from ._amd import variable_order
-from ._analyses import STRUCTURES, digest, structure_key
+from ._analyses import STRUCTURES, StructureInputs, digest
 from ._early import Analysis, EarlyAnalysis
 from ._factors import FactorIndex, HessianScatter, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import Pattern, StructureBuild, hessian_pattern
@@ -66,10 +66,6 @@ class BlockStructure:
     dense : bool
         Store every entry of ``H`` (``n²``: for small systems, see
         :data:`~manopt_lie.linalg.DENSE_MAX`) instead of the touched blocks.
-    inputs_digest : bytes, optional
-        A digest of these arguments (e.g. the structure pool's
-        :func:`~manopt_lie.linalg._analyses.structure_key`), which determine the pattern: the
-        :meth:`pattern_digest` then, instead of a digest of the block pattern.
 
     Raises
     ------
@@ -105,16 +101,10 @@ class BlockStructure:
     _indices: NDArray[np.signedinteger]
     _diag_pos: NDArray[np.signedinteger]
 
-    def __init__(
-        self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False,
-        inputs_digest: bytes | None = None,
-    ) -> None:  # fmt: skip
-        self._setup(dims, factors, dense, inputs_digest, on_worker=False)
+    def __init__(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], *, dense: bool = False) -> None:
+        self._setup(dims, factors, dense, on_worker=False)
 
-    def _setup(
-        self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], dense: bool, inputs_digest: bytes | None,
-        on_worker: bool,
-    ) -> None:  # fmt: skip
+    def _setup(self, dims: ArrayLike, factors: Sequence[tuple[ArrayLike, int]], dense: bool, on_worker: bool) -> None:
         """The constructor's work; ``on_worker``: the compiled build is left to the worker thread where
         it can run there (:meth:`_started`)."""
         d = np.asarray(dims)
@@ -133,12 +123,15 @@ class BlockStructure:
         self._n = d.size * lowest if uniform else int(self.dims.sum())
         self._ordering: IntArray | None = None  # computed at first use
         self._variable_order: IntArray | None = None
-        self._digest = None if inputs_digest is None else inputs_digest + b"inputs"
+        self._digest: bytes | None = None
         self._early: EarlyAnalysis | None = None
         self._build: StructureBuild | None = None  # running on the worker, until _finish
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
         self._factors = [FactorIndex(a, int(r), s) for a, s, (_, r) in zip(ids, slots, factors, strict=True)]
+        for a in (self.dims, *ids):  # this structure's own copies, its key in the pools (nothing writes to them)
+            a.flags.writeable = False
+        self._inputs = StructureInputs(self.dims, [(f.var_ids, f.residual_dim) for f in self._factors], self.dense)
         squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
         dimension = lowest if uniform else 0
         entries = EarlyAnalysis.entries(self.dims, dimension) if on_worker else 0  # its arrays cut with the build's
@@ -187,15 +180,15 @@ class BlockStructure:
 
     @classmethod
     def _started(
-        cls, dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool, key: bytes
+        cls, dims: NDArray[np.integer], factors: Sequence[tuple[NDArray[np.integer], int]], dense: bool
     ) -> BlockStructure | None:
-        """The structure of these inputs (``key``: their :func:`structure_key`), its compiled build and
-        analysis started on the worker thread (where they can run there; else built here), for a
-        problem that evaluates its first residuals meanwhile and then calls :meth:`_finish` before
-        anything else; ``None`` where the inputs are invalid (the constructor raises then)."""
+        """The structure of these inputs, its compiled build and analysis started on the worker thread
+        (where they can run there; else built here), for a problem that evaluates its first residuals
+        meanwhile and then calls :meth:`_finish` before anything else; ``None`` where the inputs are
+        invalid (the constructor raises then)."""
         structure = cls.__new__(cls)
         try:
-            structure._setup(dims, factors, dense, key, on_worker=True)
+            structure._setup(dims, factors, dense, on_worker=True)
         except ValueError:
             return None
         return structure
@@ -234,8 +227,8 @@ class BlockStructure:
         Returns
         -------
         BlockStructure
-            Shared, not copied: nothing changes a built structure. Its :meth:`pattern_digest`
-            is the pool's key.
+            Shared, not copied: nothing changes a built structure. The pool keys it by its own
+            copies of the inputs (:class:`~manopt_lie.linalg._analyses.StructureInputs`).
 
         Raises
         ------
@@ -254,11 +247,11 @@ class BlockStructure:
         a problem whose factors declare their residuals' lengths: it evaluates its first residuals
         in between (CSAIL: the build's 0.1 ms off its first linearization)."""
         dims_, pairs = np.asarray(dims), [(np.asarray(ids), int(r)) for ids, r in factors]
-        key = structure_key(dims_, pairs, dense)
-        started = cls._started(dims_, pairs, dense, key) if start and key not in STRUCTURES else None
+        key = StructureInputs(dims_, pairs, dense)  # the caller's arrays: for the look-up only
+        started = cls._started(dims_, pairs, dense) if start and key not in STRUCTURES else None
 
         def build() -> BlockStructure:
-            return started._finish() if started is not None else cls(dims_, pairs, dense=dense, inputs_digest=key)
+            return started._finish() if started is not None else cls(dims_, pairs, dense=dense)
 
         return lambda: STRUCTURES.get(key, build)
 
@@ -380,11 +373,9 @@ class BlockStructure:
         return self._ordering
 
     def pattern_digest(self) -> bytes:
-        """A digest of ``H``'s pattern through what determines it: the structure's inputs where they
-        were digested already (``inputs_digest``: a problem's structure, 0.03–0.06 ms saved on
-        CSAIL and intel), else the variables' dimensions and block pattern (``d²`` times fewer
-        bytes than its coordinates). The key under which
-        :data:`~manopt_lie.linalg._analyses.ANALYSES` pools its analysis. Computed once."""
+        """A digest of ``H``'s pattern through what determines it: the variables' dimensions and
+        block pattern (``d²`` times fewer bytes than its coordinates), equal for structures of one
+        pattern however their edges were listed. Computed once."""
         if self._digest is None:
             self._digest = digest(self.dims, *self._block_pattern) + b"blocks"
         return self._digest

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from manopt_lie.linalg import BlockStructure, CholeskySolver, clear_caches
-from manopt_lie.linalg._analyses import ANALYSES, STRUCTURES, AnalysisPool, StructurePool, pattern_key, structure_key
+from manopt_lie.linalg._analyses import ANALYSES, STRUCTURES, AnalysisPool, StructureInputs, StructurePool, pattern_key
 from manopt_lie.optim import LeastSquaresProblem, LevenbergMarquardt
 from manopt_lie.problems import synthetic
 
@@ -40,11 +40,11 @@ def _solve(structure: BlockStructure, blocks, residuals, backend: str) -> tuple[
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_a_structure_of_the_same_pattern_takes_the_pooled_analysis(backend, rng):
-    """Two structures of one graph, built apart, have one digest; the second solve borrows the
+    """Two structures of one graph, built apart, have one key; the second solve borrows the
     first's analysis once it is returned, and solves alike."""
     s1, blocks, residuals = pose_graph(np.random.default_rng(0), n_poses=30, d=6)
     s2, _, _ = pose_graph(np.random.default_rng(0), n_poses=30, d=6)
-    assert s1 is not s2 and s1.pattern_digest() == s2.pattern_digest()
+    assert s1 is not s2 and s1._inputs == s2._inputs and s1.pattern_digest() == s2.pattern_digest()
     first, x1 = _solve(s1, blocks, residuals, backend)
     assert ANALYSES.misses == 1 and ANALYSES.hits == 0
     del first
@@ -88,26 +88,33 @@ def test_digests_tell_patterns_apart():
     assert base.pattern_digest() is base.pattern_digest()  # computed once
 
 
-def test_a_digest_of_the_inputs_serves_as_the_patterns():
-    """Given the digest of its inputs (a problem's structure key), a structure's pattern digest is
-    that digest: equal for equal inputs, apart from the block-pattern digest of the same pattern."""
+def test_a_structure_is_keyed_by_its_own_copy_of_the_inputs():
+    """A structure's key is its inputs, held in its own read-only copies: equal (and of one hash)
+    for equal inputs, unchanged when the caller's arrays change after. The same pattern listed in
+    another edge order is another key with the same pattern digest."""
     chain = np.array([[0, 1], [1, 2]])
-    key = structure_key(np.array([3, 3, 3]), [(chain, 3)], False)
-    a, b = (BlockStructure([3, 3, 3], [(chain, 3)], inputs_digest=key) for _ in range(2))
-    assert a.pattern_digest() == b.pattern_digest() != BlockStructure([3, 3, 3], [(chain, 3)]).pattern_digest()
-    assert a.pattern_digest().startswith(key)
+    a, b = (BlockStructure([3, 3, 3], [(chain, 3)]) for _ in range(2))
+    assert a._inputs == b._inputs and hash(a._inputs) == hash(b._inputs)
+    assert a._inputs == StructureInputs(np.array([3, 3, 3]), [(chain, 3)], False)
+    chain[1] = [0, 2]  # the caller's array, changed
+    assert a._inputs == b._inputs != StructureInputs(np.array([3, 3, 3]), [(chain, 3)], False)
+    assert not a.dims.flags.writeable and not a._factors[0].var_ids.flags.writeable
+    reordered = BlockStructure([3, 3, 3], [(np.array([[1, 2], [0, 1]]), 3)])
+    assert reordered._inputs != a._inputs and reordered.pattern_digest() == a.pattern_digest()
 
 
 def test_shared_structures_come_from_the_pool():
     """``BlockStructure.shared``: one structure for equal inputs (lists or arrays alike), another for
-    other inputs or the dense flag, a new one after ``clear_caches``; keyed by its inputs' digest."""
+    other inputs or the dense flag, a new one after ``clear_caches``; keyed by its own copy of the
+    inputs, not by the caller's arrays."""
     chain = np.array([[0, 1], [1, 2]])
     first = BlockStructure.shared(np.array([3, 3, 3]), [(chain, 3)])
     assert BlockStructure.shared([3, 3, 3], [(chain.tolist(), 3)]) is first and STRUCTURES.hits == 1
-    assert first.pattern_digest().startswith(structure_key(np.array([3, 3, 3]), [(chain, 3)], False))
-    others = [BlockStructure.shared([3, 3, 3], [(chain[:1], 3)]),
+    chain[0, 0] = 2  # the array the pool was given, changed: the pooled key (the structure's copy) is not
+    assert BlockStructure.shared([3, 3, 3], [([[0, 1], [1, 2]], 3)]) is first and STRUCTURES.hits == 2
+    others = [BlockStructure.shared([3, 3, 3], [(chain, 3)]), BlockStructure.shared([3, 3, 3], [(chain[:1], 3)]),
               BlockStructure.shared([3, 3, 3], [(chain, 3)], dense=True)]  # fmt: skip
-    assert all(o is not first for o in others) and len(STRUCTURES) == 3
+    assert all(o is not first for o in others) and len(STRUCTURES) == 4
     clear_caches()
     assert BlockStructure.shared([3, 3, 3], [(chain, 3)]) is not first
     with pytest.raises(ValueError, match="edge 1, slot 1: variable id 3"):  # the constructor's check
@@ -123,7 +130,7 @@ def test_keys_of_a_copied_pattern_hash_its_coordinates(rng):
     copy = sp.csc_matrix((H.data.copy(), H.indices.copy(), H.indptr.copy()), shape=H.shape)
     k1 = pattern_key("qdldl", copy.indptr, copy.indices)
     k2 = pattern_key("qdldl", H.indptr, H.indices)
-    k3 = pattern_key("qdldl", H.indptr, H.indices, s.pattern_digest())
+    k3 = pattern_key("qdldl", H.indptr, H.indices, s._inputs)
     assert k1 == k2 != k3
     x = CholeskySolver().bind(s)(copy, -g)  # not the bound pattern's arrays: checked and keyed by them
     np.testing.assert_allclose(H @ x, -g, rtol=0, atol=1e-10 * np.abs(g).max())
@@ -203,37 +210,41 @@ def test_problems_in_threads_share_one_structure():
 
 def test_structure_keys_tell_graphs_apart():
     """The key of the structure's inputs changes with the dimensions, the edges (also edges of the
-    same bytes in another shape), a residual length and the dense flag."""
+    same bytes in another shape), a residual length and the dense flag; equal values in another
+    integer dtype are the same key."""
     dims = np.array([3, 3, 3, 3])
     chain = np.array([[0, 1], [1, 2], [2, 3]])
     flat = chain.reshape(-1, 1)  # the same bytes as unary edges
     keys = {
-        structure_key(dims, [(chain, 3)], False),
-        structure_key(np.array([2, 2, 2, 2]), [(chain, 3)], False),
-        structure_key(dims, [(chain[::-1].copy(), 3)], False),
-        structure_key(dims, [(flat, 3)], False),
-        structure_key(dims, [(chain, 2)], False),
-        structure_key(dims, [(chain, 3)], True),
-        structure_key(dims, [(chain, 3), (chain, 3)], False),
-        structure_key(np.array([3, 2, 3, 3]), [(chain, 3)], False),
-        structure_key(np.array([3, 3, 2, 3]), [(chain, 3)], False),
-        structure_key(dims, [(chain + np.array([0, 2**32]), 3)], False),  # not hashed as its 32-bit wrap
+        StructureInputs(dims, [(chain, 3)], False),
+        StructureInputs(np.array([2, 2, 2, 2]), [(chain, 3)], False),
+        StructureInputs(dims, [(chain[::-1].copy(), 3)], False),
+        StructureInputs(dims, [(flat, 3)], False),
+        StructureInputs(dims, [(chain, 2)], False),
+        StructureInputs(dims, [(chain, 3)], True),
+        StructureInputs(dims, [(chain, 3), (chain, 3)], False),
+        StructureInputs(np.array([3, 2, 3, 3]), [(chain, 3)], False),
+        StructureInputs(np.array([3, 3, 2, 3]), [(chain, 3)], False),
+        StructureInputs(dims, [(chain + np.array([0, 2**32]), 3)], False),  # not hashed as its 32-bit wrap
     }
     assert len(keys) == 10
-    assert structure_key(dims, [(chain, 3)], False) == structure_key(dims.copy(), [(chain.copy(), 3)], False)
+    assert StructureInputs(dims, [(chain, 3)], False) == StructureInputs(dims.copy(), [(chain.copy(), 3)], False)
+    narrow = StructureInputs(dims.astype(np.int32), [(chain.astype(np.int32), 3)], False)
+    assert StructureInputs(dims, [(chain, 3)], False) == narrow
 
 
 def test_the_structure_pool_keeps_at_most_its_bounds():
     pool = StructurePool(max_kept=2, max_kept_nnz=100)
-    made = [SimpleNamespace(nnz=10 * (i + 1)) for i in range(4)]
+    keys = [StructureInputs(np.array([i + 1]), [(np.zeros((1, 1), int), 1)], False) for i in range(5)]
+    made = [SimpleNamespace(nnz=10 * (i + 1), _inputs=keys[i]) for i in range(4)]
     for i in range(3):
-        assert pool.get(bytes([i]), lambda i=i: made[i]) is made[i]
+        assert pool.get(keys[i], lambda i=i: made[i]) is made[i]  # type: ignore[arg-type,return-value]
     assert len(pool) == 2 and pool.misses == 3  # the least recently used dropped
-    assert pool.get(bytes([2]), lambda: None) is made[2] and pool.hits == 1  # type: ignore[arg-type,return-value]
-    big = SimpleNamespace(nnz=101)
-    assert pool.get(b"big", lambda: big) is big and b"big" not in pool._kept  # beyond the bound alone: not kept
-    pool.get(bytes([3]), lambda: made[3])  # 30 + 40 ≤ 100: kept beside the most recent
-    assert set(pool._kept) == {bytes([2]), bytes([3])}
+    assert pool.get(keys[2], lambda: None) is made[2] and pool.hits == 1  # type: ignore[arg-type,return-value]
+    big = SimpleNamespace(nnz=101, _inputs=keys[4])
+    assert pool.get(keys[4], lambda: big) is big and keys[4] not in pool  # type: ignore[arg-type,return-value]
+    pool.get(keys[3], lambda: made[3])  # type: ignore[arg-type,return-value]  # 30 + 40 ≤ 100: kept beside the most recent
+    assert set(pool._kept) == {keys[2], keys[3]}
     pool.clear()
     assert len(pool) == 0 and pool.hits == pool.misses == 0
 
@@ -249,4 +260,4 @@ def test_structure_keys_agree_exactly_when_the_inputs_do(edges_a, edges_b, r_a, 
     dims = np.full(6, 3)
     a, b = np.array(edges_a), np.array(edges_b)
     same = a.shape == b.shape and np.array_equal(a, b) and r_a == r_b
-    assert (structure_key(dims, [(a, r_a)], False) == structure_key(dims, [(b, r_b)], False)) == same
+    assert (StructureInputs(dims, [(a, r_a)], False) == StructureInputs(dims, [(b, r_b)], False)) == same

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from manopt_lie.linalg import BlockStructure, _amd, _patterns, clear_caches
-from manopt_lie.linalg._analyses import STRUCTURES, structure_key
+from manopt_lie.linalg._analyses import STRUCTURES
 
 from .helpers import assert_same_structure, in_threads, structure_arrays
 from .test_early import assert_same, expected
@@ -45,7 +45,7 @@ def graph(seed: int, n: int, d: int, repeats: bool) -> tuple[np.ndarray, list[tu
 
 def started(dims: np.ndarray, factors: list[tuple[np.ndarray, int]]) -> BlockStructure:
     """A structure whose build is running on the worker (checked), unfinished."""
-    S = BlockStructure._started(dims, factors, False, structure_key(dims, factors, False))
+    S = BlockStructure._started(dims, factors, False)
     assert S is not None and S._build is not None
     return S
 
