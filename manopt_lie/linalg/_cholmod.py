@@ -49,6 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from .. import _native
 from . import _patterns
 from ._backends import _CHOLMOD, supernodal_setting
 from ._cholmod_types import (
@@ -241,8 +242,9 @@ class Cholmod:
         self._gather = gather
         # Its values are gathered at each factorization into a fresh array, not kept between
         # them: a 10⁵-pose cube's (50 MB) would otherwise stay resident through the solve's peak.
-        self._matrix = _Sparse(n, n, gather.size, self._indptr.ctypes.data, self._indices.ctypes.data, None,
-                               None, None, 1 if upper else -1, _INT, _REAL, _DOUBLE, 1, 1)  # fmt: skip
+        at = _native.address
+        self._matrix = _Sparse(n, n, gather.size, at(self._indptr), at(self._indices), None, None, None,
+                               1 if upper else -1, _INT, _REAL, _DOUBLE, 1, 1)  # fmt: skip
         self.pivots: FloatArray | None = None
         """``D`` of the last factorization if it is an ``LDLᵀ`` (in the factor's order), else ``None``."""
         if gather.size >= TRIM_ENTRIES:
@@ -388,19 +390,18 @@ class Cholmod:
         CHOLMOD would (:meth:`_analyze_variables`). The arrays are allocated by CHOLMOD, as its
         analysis would allocate them."""
         lib, n, nv = self._lib, self._n, self._n // d
-        factor_p = lib.cholmod_allocate_factor(n, self._common)  # natural order, simplicial, no rows
-        if not factor_p:
+        address = lib.cholmod_allocate_factor(n, self._common)  # natural order, simplicial, no rows
+        if not address:
             raise MemoryError("CHOLMOD could not allocate a factor")
-        handle = c_void_p(ctypes.cast(factor_p, c_void_p).value)
-        factor = factor_p.contents
+        handle, factor = c_void_p(address), _Factor.from_address(address)
         try:
             if isinstance(variables_factor, _Factor):
                 supernodal, made = True, self._expand_supernodes(variables_factor, factor, d)
             else:
-                counts = _array(factor.ColCount, np.int32, n)
-                if variables_factor.dtype == np.int32:
-                    counts[:] = variables_factor
+                if variables_factor.dtype == np.int32:  # B's own counts (early): copied as they are
+                    ctypes.memmove(factor.ColCount, _native.address(variables_factor), 4 * n)
                 else:
+                    counts = _array(factor.ColCount, np.int32, n)
                     block_counts = (d * variables_factor).astype(np.int32)[:, None]
                     np.subtract(block_counts, np.arange(d, dtype=np.int32), out=counts.reshape(nv, d))
                 factor.is_ll, supernodal, made = 0, False, True
@@ -411,8 +412,9 @@ class Cholmod:
             lib.cholmod_free_factor(byref(handle), self._common)
             return False
         factor.ordering = _NATURAL
-        lib.cholmod_free_factor(byref(self._handle), self._common)
-        self._handle.value = handle.value
+        if self._handle.value:
+            lib.cholmod_free_factor(byref(self._handle), self._common)
+        self._handle.value = address
         self.supernodal = supernodal
         return True
 

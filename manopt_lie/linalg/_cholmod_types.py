@@ -92,7 +92,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "cholmod_copy_factor": (POINTER(_Factor), [c_void_p, c_void_p]),
     "cholmod_factor_to_sparse": (POINTER(_Sparse), [c_void_p, c_void_p]),
     "cholmod_free_sparse": (c_int, [c_void_p, c_void_p]),
-    "cholmod_allocate_factor": (POINTER(_Factor), [c_size_t, c_void_p]),
+    "cholmod_allocate_factor": (c_void_p, [c_size_t, c_void_p]),
     "cholmod_malloc": (c_void_p, [c_size_t, c_size_t, c_void_p]),
 }
 
