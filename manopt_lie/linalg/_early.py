@@ -51,6 +51,8 @@ class Analysis:
     simplicial: Simplicial | None
     """``B``'s simplicial factor in the symbolic's postordered variables, where CHOLMOD's default
     choice of kind is simplicial."""
+    dimension: int = 0
+    """Every variable's dimension (an analysis runs for variables of one dimension only)."""
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,7 @@ class EarlyAnalysis:
         self._order32, self._columns, *triangle = narrow
         self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
         self._inputs = (dims, indptr, block_indptr, block_rows, build)
+        self._dimension = dimension
         self._status_at, self._build_status_at = at_wide[4], at_wide[6]  # for __del__ (also at exit) and built()
         at = _patterns._at
         args[:] = [
@@ -199,4 +202,4 @@ class EarlyAnalysis:
             perm = self._perm.astype(np.intp, copy=False)
             made = Simplicial(cost, self._columns, (indptr, rows[:size], gather[:size]), perm)
         symbolic_ = (variables.astype(np.intp, copy=False), counts) if symbolic == 0 else None
-        return Analysis(order.astype(np.intp, copy=False), symbolic_, made)
+        return Analysis(order.astype(np.intp, copy=False), symbolic_, made, self._dimension)

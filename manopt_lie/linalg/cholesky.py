@@ -175,7 +175,7 @@ class CholeskySolver:
         supernodal, backend = self.supernodal, self.backend
         if self._auto and supernodal is None and structure.n <= DENSE_MAX:
             backend = "dense"  # a small system: LAPACK on the dense matrix, no sparse machinery
-        elif supernodal is None and backend == "cholmod" and int(structure.dims.min()) >= SUPERNODE_DIM:
+        elif supernodal is None and backend == "cholmod" and structure._lowest >= SUPERNODE_DIM:
             supernodal = True
         solver = CholeskySolver(backend, rtol=self.rtol, supernodal=supernodal)
         solver._trusted = (structure.indptr, structure.indices)

@@ -116,6 +116,7 @@ class BlockStructure:
             raise ValueError("factors must hold at least one factor type")
         ids = [_factors.factor_ids(k, v, r) for k, (v, r) in enumerate(factors)]
         uniform = int(d.max()) == lowest
+        self._lowest = lowest  # the smallest dimension (a solver's choice of kind reads it)
         # One dimension: the compiled build checks the edges in its pass over them, NumPy below for
         # the other builds. Several: NumPy checks them here, as it finds the slots' dimensions.
         check = _factors.check_edges
