@@ -15,7 +15,8 @@ concatenated in slot order, is the block ``A_e`` of shape ``(r_k, D_k)`` with
 and a Gauss-Newton step solves ``H δ = −g``. The pattern never changes while
 a solve runs, so every index array is computed once here and each call only
 refills data arrays. The index arrays are built in compiled code (``_patterns``) or,
-where it cannot serve, with NumPy (``_patterns_numpy``): the same arrays.
+where it cannot serve, with NumPy (``_patterns_numpy``): the same arrays. ``H`` and ``g``
+are summed in compiled code too (``_assembly``), else with NumPy.
 """
 
 from __future__ import annotations
@@ -163,9 +164,9 @@ class BlockStructure:
             self._hess_scatter = [h for h, _ in scatters]
             self._grad_scatter = [g for _, g in scatters]
             self._diag_pos.flags.writeable = False
-        # Edges per chunk of normal_equations: the products of a chunk fill ~CHUNK floats.
+        # Edges per chunk of NumPy's normal_equations: the products of a chunk fill ~CHUNK floats.
         self._chunks = [max(1, min(f.m, CHUNK // f.width**2)) for f in self._factors]
-        # Workspaces reused by normal_equations (one chunk's products and W·A): fresh arrays
+        # Workspaces reused by NumPy's normal_equations (one chunk's products and W·A): fresh arrays
         # cost more in page faults than the products written into them. One set per thread,
         # made on first use, so that threads may share the structure.
         self._local = threading.local()
@@ -458,9 +459,10 @@ class BlockStructure:
 
         Notes
         -----
-        Reuses workspaces of the structure, one set per thread, so several
-        threads may assemble from one structure at once. ``H`` and ``g`` are
-        always new arrays.
+        Assembled in compiled code, one pass over the edges (``_assembly``), or by
+        NumPy in chunks with workspaces of the structure, one set per thread; either
+        way several threads may assemble from one structure at once. ``H`` and ``g``
+        are always new arrays.
         """
         blocks_, weights_ = self._check_blocks(blocks), self._check_weights(weights)
         return self._hessian(blocks_, weights_), self._gradient(blocks_, self._check_residuals(residuals), weights_)
