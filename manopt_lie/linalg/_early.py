@@ -52,7 +52,8 @@ class Analysis:
     """``B``'s simplicial factor in the symbolic's postordered variables, where CHOLMOD's default
     choice of kind is simplicial."""
     dimension: int = 0
-    """Every variable's dimension (an analysis runs for variables of one dimension only)."""
+    """Every variable's dimension (an analysis runs for variables of one dimension only; 0 where
+    nothing was made)."""
 
 
 @dataclass(frozen=True)
