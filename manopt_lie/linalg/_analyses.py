@@ -161,10 +161,10 @@ class StructureInputs:
 
 
 class StructurePool:
-    """Built block structures by their inputs (:class:`StructureInputs`), shared (never lent: nothing writes to a
-    built structure, and one structure serves many threads); thread-safe. At most ``max_kept``
-    structures with ``max_kept_nnz`` entries of ``H`` in all are kept, least recently used
-    dropped first.
+    """Built block structures by their inputs (:class:`StructureInputs`), shared (never lent:
+    nothing writes to a built structure, and one structure serves many threads); thread-safe. At
+    most ``max_kept`` structures with ``max_kept_nnz`` entries of ``H`` in all are kept, least
+    recently used dropped first.
 
     Attributes
     ----------

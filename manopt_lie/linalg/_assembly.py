@@ -7,7 +7,8 @@ chunk's products that a cold solve's first assembly brings into its cache. Compi
 takes 0.08–0.14 ms instead of 0.13–0.22 and ``g`` 0.03–0.04 instead of 0.06–0.11 (this machine,
 alternated); a cold LM solve 7–8 % less on CSAIL, intel and manhattan. The functions
 return ``False`` where the C cannot serve — no compiler (``_native.enabled``), a scatter that is
-not 32-bit, a factor wider than :data:`MAX_WIDTH` — and the caller takes the NumPy path.
+not 32-bit, a factor wider than :data:`MAX_WIDTH`, arrays not C-contiguous float64 — and the
+caller takes the NumPy path.
 """
 
 from __future__ import annotations
@@ -43,17 +44,18 @@ def _library() -> Any:
     return _native.load_source(__package__, "assembly.c", _SIGNATURES)
 
 
-def _usable(a: FloatArray, positions: NDArray[np.signedinteger]) -> bool:
+def _usable(a: FloatArray, positions: NDArray[np.signedinteger], out: FloatArray) -> bool:
+    """Whether the C can read ``a`` and ``positions`` and add into ``out`` as they are."""
     return (
-        positions.dtype == np.int32 and a.dtype == np.float64 and a.flags.c_contiguous
-        and a.shape[2] <= MAX_WIDTH and _library() is not None
+        positions.dtype == np.int32 and positions.flags.c_contiguous and a.ndim == 3 and a.shape[2] <= MAX_WIDTH
+        and all(x.dtype == np.float64 and x.flags.c_contiguous for x in (a, out)) and _library() is not None
     )  # fmt: skip
 
 
 def hessian_add(a: FloatArray, w: FloatArray | None, positions: NDArray[np.signedinteger], data: FloatArray) -> bool:
     """``data[positions[e, i, j]] += w_e (A_eᵀA_e)_ij`` for every edge of ``a`` (shape ``(m, r, W)``; ``w``
     of shape ``(m,)`` or ``None``: 1), where the C serves; whether it did."""
-    if not _usable(a, positions):
+    if not _usable(a, positions, data):
         return False
     m, r, width = a.shape
     if m:
@@ -68,7 +70,7 @@ def gradient_add(
 ) -> bool:
     """``g[positions[e, j]] += w_e (A_eᵀr_e)_j`` for every edge of ``a`` (``residuals`` of shape ``(m, r)``),
     where the C serves; whether it did."""
-    if not _usable(a, positions) or not (residuals.dtype == np.float64 and residuals.flags.c_contiguous):
+    if not _usable(a, positions, g) or not (residuals.dtype == np.float64 and residuals.flags.c_contiguous):
         return False
     m, r, width = a.shape
     if m:
