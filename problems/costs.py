@@ -238,7 +238,7 @@ def chordal_factor(
         j_i = -np.einsum("eakc,ecf->eafk", (ri @ basis).reshape(m, d, dim, c), zw, optimize=True).reshape(m, -1, dim)
         return r, [j_i, j_j]
 
-    return Factor(edges, residual, loss, name)
+    return Factor(edges, residual, loss, name, residual_dim=group.point_dim * c)  # d rows of c columns
 
 
 def chordal_quadratic_form(n: int, edges: IntArray, measurements: LieGroup, weights: FloatArray) -> sp.csr_matrix:
