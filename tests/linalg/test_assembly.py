@@ -39,7 +39,7 @@ def test_the_compiled_assembly_is_numpys(monkeypatch, seed, dense):
             np.testing.assert_allclose(compiled[0].toarray(), h, rtol=0, atol=1e-13 * np.abs(h).max())
         for v in (g, g_ref):
             np.testing.assert_allclose(compiled[1], v, rtol=0, atol=1e-13 * np.abs(v).max())
-        assert np.array_equal(compiled[0].toarray(), compiled[0].toarray().T)  # each product summed once
+        assert np.array_equal(compiled[0].toarray(), compiled[0].toarray().T)  # (i, j) and (j, i) summed alike
 
 
 def test_a_scatter_made_per_chunk_is_summed_alike(monkeypatch):
