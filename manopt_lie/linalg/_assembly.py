@@ -7,8 +7,8 @@ chunk's products that a cold solve's first assembly brings into its cache. Compi
 takes 0.08–0.14 ms instead of 0.13–0.22 and ``g`` 0.03–0.04 instead of 0.06–0.11 (this machine,
 alternated); a cold LM solve 7–8 % less on CSAIL, intel and manhattan. The functions
 return ``False`` where the C cannot serve — no compiler (``_native.enabled``), a scatter that is
-not 32-bit, a factor wider than :data:`MAX_WIDTH`, arrays not C-contiguous float64 — and the
-caller takes the NumPy path.
+not 32-bit, a factor wider than :data:`MAX_WIDTH`, arrays (weights included) not C-contiguous
+float64 — and the caller takes the NumPy path.
 """
 
 from __future__ import annotations
@@ -44,24 +44,23 @@ def _library() -> Any:
     return _native.load_source(__package__, "assembly.c", _SIGNATURES)
 
 
-def _usable(a: FloatArray, positions: NDArray[np.signedinteger], out: FloatArray) -> bool:
-    """Whether the C can read ``a`` and ``positions`` and add into ``out`` as they are."""
+def _usable(a: FloatArray, w: FloatArray | None, positions: NDArray[np.signedinteger], out: FloatArray) -> bool:
+    """Whether the C can read ``a``, ``w`` and ``positions`` and add into ``out`` as they are."""
+    floats = (a, out) if w is None else (a, w, out)
     return (
         positions.dtype == np.int32 and positions.flags.c_contiguous and a.ndim == 3 and a.shape[2] <= MAX_WIDTH
-        and all(x.dtype == np.float64 and x.flags.c_contiguous for x in (a, out)) and _library() is not None
+        and all(x.dtype == np.float64 and x.flags.c_contiguous for x in floats) and _library() is not None
     )  # fmt: skip
 
 
 def hessian_add(a: FloatArray, w: FloatArray | None, positions: NDArray[np.signedinteger], data: FloatArray) -> bool:
     """``data[positions[e, i, j]] += w_e (A_eᵀA_e)_ij`` for every edge of ``a`` (shape ``(m, r, W)``; ``w``
     of shape ``(m,)`` or ``None``: 1), where the C serves; whether it did."""
-    if not _usable(a, positions, data):
+    if not _usable(a, w, positions, data):
         return False
     m, r, width = a.shape
     if m:
-        weights = None if w is None else np.ascontiguousarray(w, dtype=np.float64)
-        at_w = None if weights is None else _at(weights)
-        _library().hessian_add(m, r, width, _at(a), at_w, _at(positions), _at(data))
+        _library().hessian_add(m, r, width, _at(a), None if w is None else _at(w), _at(positions), _at(data))
     return True
 
 
@@ -70,11 +69,11 @@ def gradient_add(
 ) -> bool:
     """``g[positions[e, j]] += w_e (A_eᵀr_e)_j`` for every edge of ``a`` (``residuals`` of shape ``(m, r)``),
     where the C serves; whether it did."""
-    if not _usable(a, positions, g) or not (residuals.dtype == np.float64 and residuals.flags.c_contiguous):
+    if not _usable(a, w, positions, g) or not (residuals.dtype == np.float64 and residuals.flags.c_contiguous):
         return False
     m, r, width = a.shape
     if m:
-        weights = None if w is None else np.ascontiguousarray(w, dtype=np.float64)
-        at_w = None if weights is None else _at(weights)
-        _library().gradient_add(m, r, width, _at(a), _at(residuals), at_w, _at(positions), _at(g))
+        _library().gradient_add(
+            m, r, width, _at(a), _at(residuals), None if w is None else _at(w), _at(positions), _at(g)
+        )
     return True

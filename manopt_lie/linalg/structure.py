@@ -21,6 +21,7 @@ are summed in compiled code too (``_assembly``), else with NumPy.
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -164,13 +165,10 @@ class BlockStructure:
             self._hess_scatter = [h for h, _ in scatters]
             self._grad_scatter = [g for _, g in scatters]
             self._diag_pos.flags.writeable = False
-        # Edges per chunk of NumPy's normal_equations: the products of a chunk fill ~CHUNK floats.
-        self._chunks = [max(1, min(f.m, CHUNK // f.width**2)) for f in self._factors]
         # Workspaces reused by NumPy's normal_equations (one chunk's products and W·A): fresh arrays
         # cost more in page faults than the products written into them. One set per thread,
         # made on first use, so that threads may share the structure.
         self._local = threading.local()
-        self._first: tuple[int, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]] | None = None
         self._jac: _JacobianPattern | None = None
 
     def _take(self, built: Pattern) -> None:
@@ -258,14 +256,14 @@ class BlockStructure:
 
         return lambda: STRUCTURES.get(key, build)
 
+    @functools.cached_property
+    def _chunks(self) -> list[int]:
+        """Edges per chunk of NumPy's normal_equations: the products of a chunk fill ~CHUNK floats."""
+        return [max(1, min(f.m, CHUNK // f.width**2)) for f in self._factors]
+
     def _workspaces(self) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]]:
-        """This thread's workspaces for :meth:`normal_equations` (H products, g products, W·A, and
-        the positions of a chunk's products where a factor's scatter is made per chunk). The first
-        thread's are also kept beside its id: found without the thread-local lookup, which costs
-        more than a small system's products."""
-        first = self._first
-        if first is not None and first[0] == threading.get_ident():
-            return first[1]
+        """This thread's workspaces for NumPy's :meth:`normal_equations` (H products, g products, W·A,
+        and the positions of a chunk's products where a factor's scatter is made per chunk)."""
         work: tuple[FloatArray, FloatArray, FloatArray, NDArray[np.signedinteger]] | None = getattr(
             self._local, "work", None
         )
@@ -279,8 +277,6 @@ class BlockStructure:
             work = (np.empty(max(h for h, _, _ in sizes)), np.empty(max(g for _, g, _ in sizes)),
                     np.empty(max(w for _, _, w in sizes)), positions)  # fmt: skip
             self._local.work = work
-            if self._first is None:
-                self._first = (threading.get_ident(), work)
         return work
 
     # -- symbolic analysis -------------------------------------------------
@@ -527,10 +523,11 @@ class BlockStructure:
             data = out.data
             data.fill(0.0)
         for k, (a, w, f) in enumerate(zip(blocks, weights, self._factors, strict=True)):
-            scatter, width, step = self._hess_scatter[k], f.width, self._chunks[k]
+            scatter, width = self._hess_scatter[k], f.width
             if scatter.whole is not None and hessian_add(a, w, scatter.whole, data):  # compiled, one pass
                 continue
             hess_vals, _, weighted, positions = self._workspaces()
+            step = self._chunks[k]
             # Chunks of edges: the products of one chunk stay in cache and in a small workspace,
             # and np.add.at sums them into H (int32 scatters on its fast path). W A_e goes to a
             # workspace even for unit weights: NumPy's matmul of two views of one array takes
@@ -557,10 +554,11 @@ class BlockStructure:
         """``Σ_e w_e A_eᵀ r_e`` scattered into a fresh ``g``."""
         g = np.zeros(self._n)
         for k, (a, r, w, f) in enumerate(zip(blocks, residuals, weights, self._factors, strict=True)):
-            gs, width, step = self._grad_scatter[k], f.width, self._chunks[k]
+            gs, width = self._grad_scatter[k], f.width
             if gradient_add(a, r, w, gs, g):  # compiled, one pass
                 continue
             _, grad_vals, _, _ = self._workspaces()
+            step = self._chunks[k]
             rw = r if w is None else r * w[:, None]
             for e0 in range(0, f.m, step):
                 e1 = min(e0 + step, f.m)

@@ -58,13 +58,14 @@ def test_a_scatter_made_per_chunk_is_summed_alike(monkeypatch):
 
 
 def test_where_the_c_cannot_serve_numpy_assembles():
-    """A block wider than MAX_WIDTH, 64-bit positions, Jacobians or an output not C-contiguous float64:
-    the functions decline, and the structure's NumPy path gives the dense reference."""
+    """A block wider than MAX_WIDTH, 64-bit positions, Jacobians, weights or an output not C-contiguous
+    float64: the functions decline, and the structure's NumPy path gives the dense reference."""
     a = np.ones((2, 1, _assembly.MAX_WIDTH + 1))
     positions = np.zeros(2 * a.shape[2] ** 2, dtype=np.int32)
     assert not _assembly.hessian_add(a, None, positions, np.zeros(4))
     assert not _assembly.hessian_add(np.ones((2, 1, 3)), None, positions.astype(np.int64), np.zeros(4))
     assert not _assembly.hessian_add(np.ones((2, 1, 3)), None, positions, np.zeros(4, dtype=np.float32))
+    assert not _assembly.hessian_add(np.ones((2, 1, 3)), np.ones(4)[::2], positions, np.zeros(4))  # strided weights
     strided = np.ones((2, 1, 6))[:, :, ::2]
     assert not _assembly.gradient_add(strided, np.ones((2, 1)), None, positions, np.zeros(4))
     dims = np.full(4, 9)  # edges of width 36 > 32
