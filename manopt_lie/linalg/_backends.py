@@ -19,6 +19,12 @@ values (``factorize(data)``) and solves (``solve(b)``):
   to a structure of 3-D poses asks for supernodes (``CholeskySolver``). ``LDLᵀ``
   does not fail on an indefinite matrix, so the signs of ``D`` are read after
   every factorization.
+- ``ldl`` (compiled here: needs a C compiler, and ``cvxopt`` for AMD): a simplicial ``LDLᵀ`` in
+  C (:mod:`~manopt_lie.linalg._ldl`), from AMD's order and the column counts of its own
+  compiled analysis, or from a structure's early analysis, which makes both on a worker thread:
+  the automatic choice for a structure whose analysis found CHOLMOD's simplicial kind (2-D pose
+  graphs), 10–35 % faster per factorization than CHOLMOD's there, and nothing of CHOLMOD's made in
+  the first solve.
 - ``qdldl`` (optional package ``qdldl``): AMD ordering and elimination tree
   computed once, LDLᵀ of the upper triangle refactored by ``Solver.update``.
 - ``superlu`` (SciPy, always present): SuperLU's multiple minimum degree
@@ -36,6 +42,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -44,6 +51,8 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 from scipy.linalg import lapack
 
+from ._ldl import available as ldl_available
+from ._ldl import ldl_backend
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._triangles import check_diagonal, columns, coordinate_major_triangle, triangle, values_view
 from .errors import SingularSystemError
@@ -339,13 +348,14 @@ class _CHOLMOD:
         return perm if self._coords is None else self._coords[perm]
 
 
-BACKENDS: dict[str, type[_SuperLU] | type[_QDLDL] | type[_CHOLMOD] | type[_Dense]] = {
+BACKENDS: dict[str, Callable[[IndexArray, IndexArray], Backend]] = {
     "cholmod": _CHOLMOD,
+    "ldl": ldl_backend,
     "qdldl": _QDLDL,
     "superlu": _SuperLU,
     "dense": _Dense,
 }
-_PACKAGES = {"cholmod": "cvxopt", "qdldl": "qdldl"}
+_PACKAGES = {"cholmod": "cvxopt", "ldl": "cvxopt", "qdldl": "qdldl"}
 
 
 def available_backends() -> tuple[str, ...]:
@@ -356,5 +366,6 @@ def available_backends() -> tuple[str, ...]:
             __import__(package)
         except ImportError:
             continue
-        usable.append(name)
+        if name != "ldl" or ldl_available():
+            usable.append(name)
     return (*usable, "superlu", "dense")

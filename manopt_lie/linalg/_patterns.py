@@ -36,6 +36,7 @@ the variables' analysis to CHOLMOD: a factor that fills in more is a supernodal 
 
 Int32 = NDArray[np.int32]
 INT32_MAX = np.iinfo(np.int32).max
+INT64_MAX = np.iinfo(np.int64).max
 Pattern = tuple[tuple[Int32, Int32], Int32, Int32, Int32, list[tuple[Int32, Int32]], NDArray[np.intp]]
 Triangle = tuple[Int32, Int32, Int32]  # a permuted triangle's indptr, rows, and positions in H.data
 
@@ -209,20 +210,23 @@ def permuted_block_triangle(
 
 
 def block_symbolic(
-    block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger], order: NDArray[np.intp]
+    block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger], order: NDArray[np.intp],
+    bounded: bool = True,
 ) -> tuple[NDArray[np.intp], NDArray[np.int64]] | None:
     """The variables' simplicial symbolic factorization in ``order`` (``patterns.c:
     block_symbolic``): their postordered order and the blocks in each column of ``L`` (its diagonal
     block included), in that order; ``None`` without the library or where ``L`` would hold more
-    than :data:`SIMPLICIAL_FILL` blocks per stored block (CHOLMOD then analyses)."""
+    than :data:`SIMPLICIAL_FILL` blocks per stored block (CHOLMOD then analyses), unless not
+    ``bounded``."""
     library = _library()
     if library is None or not _int32(block_indptr, block_rows):
         return None
     nv = block_indptr.size - 1
     order64 = np.ascontiguousarray(order, dtype=np.int64)
     variables, counts = np.empty(nv, dtype=np.int64), np.empty(nv, dtype=np.int64)
+    budget = SIMPLICIAL_FILL * block_rows.size if bounded else INT64_MAX
     status = library.block_symbolic(nv, _at(block_indptr), _at(block_rows), _at(order64),
-                                    SIMPLICIAL_FILL * block_rows.size, _at(variables), _at(counts))  # fmt: skip
+                                    budget, _at(variables), _at(counts))  # fmt: skip
     if status == -1:
         raise MemoryError("patterns.c: no memory for the variables' symbolic factorization")
     return (variables.astype(np.intp, copy=False), counts) if status == 0 else None

@@ -18,6 +18,8 @@ from ._analyses import ANALYSES, Key, pattern_key
 from ._backends import _PACKAGES, BACKENDS, DENSE_MAX, Backend, _Dense, available_backends
 from ._cholmod import cholmod_backend
 from ._factors import same_buffer
+from ._ldl import available as ldl_available
+from ._ldl import ldl_backend
 from ._vector import dot, norm
 from .errors import SingularSystemError
 
@@ -80,7 +82,7 @@ class CholeskySolver:
 
     Parameters
     ----------
-    backend : {"auto", "cholmod", "qdldl", "superlu", "dense"}
+    backend : {"auto", "cholmod", "ldl", "qdldl", "superlu", "dense"}
         ``"auto"`` (the default) takes the first importable of CHOLMOD (optional
         package ``cvxopt``), QDLDL (optional ``qdldl``) and SciPy's SuperLU; both
         optional ones are 2-8x faster than SuperLU on pose graphs, and CHOLMOD's
@@ -89,6 +91,10 @@ class CholeskySolver:
         (128) factors it dense instead (LAPACK's ``potrf``): LM on tinyGrid3D (54
         unknowns) 3.97 → 3.75 ms, a 4×4 grid of planar poses 2.12 → 1.95 ms; from
         ~150 unknowns CHOLMOD is faster (a 10×10 grid, 300: 2.91 against 4.11 ms).
+        One bound to a larger structure whose analysis, made on the structure's worker
+        thread, found CHOLMOD's simplicial kind (2-D pose graphs) factors with ``"ldl"``,
+        the compiled simplicial ``LDLᵀ`` of that analysis (:mod:`~manopt_lie.linalg._ldl`):
+        :attr:`backend` then says ``"ldl"``. ``"ldl"`` asked for analyses any pattern itself.
     rtol : float
         Relative residual tolerance of the checks below (default 1e-6).
     supernodal : bool, optional
@@ -147,8 +153,10 @@ class CholeskySolver:
         elif backend not in BACKENDS:
             raise ValueError(f"unknown backend {backend!r}; choose 'auto' or one of {sorted(BACKENDS)}")
         elif backend not in usable:
-            raise ValueError(f"backend {backend!r} needs an optional package: pip install {_PACKAGES[backend]}")
+            raise ValueError(f"backend {backend!r} needs an optional package: pip install {_PACKAGES[backend]}"
+                             + (" (and a C compiler)" if backend == "ldl" else ""))  # fmt: skip
         self.backend = backend
+        self._chosen = backend  # the automatic choice before a structure's analysis is seen (analyze)
         self.rtol = float(rtol)
         self.supernodal = supernodal
         self.n_analyses = 0
@@ -172,12 +180,13 @@ class CholeskySolver:
         """A fresh solver with these settings and no analysis, for one run
         (:class:`~manopt_lie.linalg.LinearSolver`); the structure's pattern is
         analysed at the first call (or taken from the pool of analyses)."""
-        supernodal, backend = self.supernodal, self.backend
+        supernodal, backend = self.supernodal, self._chosen
         if self._auto and supernodal is None and structure.n <= DENSE_MAX:
             backend = "dense"  # a small system: LAPACK on the dense matrix, no sparse machinery
         elif supernodal is None and backend == "cholmod" and structure._lowest >= SUPERNODE_DIM:
             supernodal = True
         solver = CholeskySolver(backend, rtol=self.rtol, supernodal=supernodal)
+        solver._auto = self._auto and backend == "cholmod" and supernodal is None  # may take "ldl" (analyze)
         solver._trusted = (structure.indptr, structure.indices)
         solver._structure = structure
         return solver
@@ -208,6 +217,11 @@ class CholeskySolver:
         if not trusted and not H.has_canonical_format:
             H = H.copy()
             H.sum_duplicates()
+        structure = self._structure if trusted else None
+        early = None if structure is None else structure._early_analysis()
+        if self._auto:  # CHOLMOD, or the compiled LDLᵀ where the structure's analysis made B's simplicial factor
+            simplicial = early is not None and early.simplicial is not None and ldl_available()
+            self.backend = "ldl" if simplicial else self._chosen
         key: Key | None = None
         impl: Backend | None = None
         if trusted and self.backend == "dense" and self._structure is not None and self._structure.dense:
@@ -223,12 +237,13 @@ class CholeskySolver:
                 pattern = sp.csc_matrix((np.ones(H.nnz), H.indices, H.indptr), shape=H.shape)
                 if (pattern != pattern.T).nnz:
                     raise ValueError("H must be symmetric with both triangles stored; its pattern is not symmetric")
-            if trusted and self.backend == "cholmod":
-                assert self._structure is not None
-                structure = self._structure
+            if structure is not None and self.backend == "cholmod":
                 block_form = (structure.dims, *structure.block_pattern)
                 impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal, block_form,
-                                       structure.variable_ordering(), structure._early_analysis())  # fmt: skip
+                                       structure.variable_ordering(), early)  # fmt: skip
+            elif structure is not None and self.backend == "ldl":
+                block_form = (structure.dims, *structure.block_pattern)
+                impl = ldl_backend(H.indptr, H.indices, block_form, structure.variable_ordering(), early)
             elif self.backend == "cholmod":
                 impl = cholmod_backend(H.indptr, H.indices, None, self.supernodal)
             else:

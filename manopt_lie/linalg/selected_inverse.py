@@ -21,8 +21,8 @@ reached), so ``Z`` is computed on that pattern only, at about the cost of the fa
 columns restricts the loop to their supernodes and the supernodes' ancestors.
 
 :func:`cholesky_factor` obtains ``(L, P)`` from any :class:`CholeskySolver` backend
-(CHOLMOD's supernodal factor, QDLDL's or SuperLU's ``LDLᵀ`` scaled to ``LLᵀ``; CHOLMOD's
-simplicial ``LDLᵀ`` too, though this function asks for supernodes);
+(CHOLMOD's supernodal factor, QDLDL's, SuperLU's or the compiled ``ldl``'s ``LDLᵀ`` scaled to
+``LLᵀ``; CHOLMOD's simplicial ``LDLᵀ`` too, though this function asks for supernodes);
 :class:`SelectedInverse` runs the recursion and reads entries of ``H⁻¹`` by original
 index; :meth:`CholeskyFactor.solve` is the alternative for a few columns of ``H⁻¹``,
 multi-right-hand-side triangular solves.
@@ -30,6 +30,7 @@ multi-right-hand-side triangular solves.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -100,7 +101,9 @@ class CholeskyFactor:
         return x
 
 
-def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
+def _cholmod_factor(impl: Any, H: sp.csc_matrix, name: str = "cholmod") -> CholeskyFactor:
+    """The factor of CHOLMOD (called directly: ``LLᵀ`` or ``LDLᵀ``) or of the compiled ``LDLᵀ``, which
+    share their interface (``factor_csc``, ``pivots``, ``permutation``, ``solve``)."""
     n = H.shape[0]
 
     def lower() -> sp.csc_matrix:
@@ -110,12 +113,12 @@ def _cholmod_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
             return sp.csc_matrix(tuple(arrays), shape=(n, n))
         # LDLᵀ, packed: D on the diagonal (the head of each sorted column), L₁ below it.
         arrays[0][arrays[2][:-1]] = 1.0
-        return _scaled(sp.csc_matrix(tuple(arrays), shape=(n, n)), pivots, "CHOLMOD")
+        return _scaled(sp.csc_matrix(tuple(arrays), shape=(n, n)), pivots, name)
 
     def solve(b: FloatArray) -> FloatArray:
         return np.asarray(impl.solve(b), dtype=np.float64)
 
-    return CholeskyFactor(impl.permutation(), "cholmod", lower, solve, exact=True)
+    return CholeskyFactor(impl.permutation(), name, lower, solve, exact=True)
 
 
 def _scaled(unit: sp.spmatrix, d: FloatArray, name: str, *, diagonal: bool = True) -> sp.csc_matrix:
@@ -153,7 +156,10 @@ def _superlu_factor(impl: Any, H: sp.csc_matrix) -> CholeskyFactor:
     return CholeskyFactor(impl._order.astype(np.intp), "superlu", lambda: L, impl.solve)
 
 
-_FACTORS = {"cholmod": _cholmod_factor, "qdldl": _qdldl_factor, "superlu": _superlu_factor}
+_FACTORS: dict[str, Callable[[Any, sp.csc_matrix], CholeskyFactor]] = {
+    "cholmod": _cholmod_factor, "ldl": functools.partial(_cholmod_factor, name="ldl"), "qdldl": _qdldl_factor,
+    "superlu": _superlu_factor,
+}
 
 
 def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol: float = 1e-6) -> CholeskyFactor:
@@ -163,7 +169,7 @@ def cholesky_factor(H: sp.spmatrix | sp.sparray, backend: str = "auto", *, rtol:
     ----------
     H : scipy.sparse matrix, shape (n, n)
         Both triangles stored (as :class:`BlockStructure` builds it).
-    backend : {"auto", "cholmod", "qdldl", "superlu"}
+    backend : {"auto", "cholmod", "ldl", "qdldl", "superlu"}
         A :class:`~manopt_lie.linalg.CholeskySolver` backend (its ordering, analysis and
         checks); ``"auto"`` takes the first available. CHOLMOD's factor is supernodal
         (relaxed supernodes, explicit zeros included), which keeps the recursion's loop short.

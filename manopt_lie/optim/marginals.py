@@ -399,7 +399,7 @@ def marginal_covariances(
         of local indices.
     method : {"auto", "selected", "solve"}
         Selected inversion, column solves, or the cheaper one for the request (module doc).
-    backend : {"auto", "cholmod", "qdldl", "superlu"}
+    backend : {"auto", "cholmod", "ldl", "qdldl", "superlu"}
         The factorization (:class:`~manopt_lie.linalg.CholeskySolver`'s backends).
 
     Returns

@@ -12,7 +12,7 @@ from manopt_lie.linalg.selected_inverse import CholeskyFactor
 
 from .helpers import random_factor_graph, random_values
 
-BACKENDS = ["cholmod", "qdldl", "superlu"]
+BACKENDS = ["cholmod", "ldl", "qdldl", "superlu"]
 
 
 def random_spd(rng: np.random.Generator, n_vars: int = 30) -> sp.csc_matrix:

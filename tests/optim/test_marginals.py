@@ -22,7 +22,7 @@ from manopt_lie.problems import costs
 from manopt_lie.problems.synthetic import cube, grid2d
 from tests.optim.test_blocks import landmark_world
 
-BACKENDS = ["cholmod", "qdldl", "superlu"]
+BACKENDS = ["cholmod", "ldl", "qdldl", "superlu"]
 METHODS = ["selected", "solve"]
 
 
