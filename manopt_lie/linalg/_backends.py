@@ -41,6 +41,7 @@ values (``factorize(data)``) and solves (``solve(b)``):
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections.abc import Callable
 from typing import Protocol
@@ -358,8 +359,10 @@ BACKENDS: dict[str, Callable[[IndexArray, IndexArray], Backend]] = {
 _PACKAGES = {"cholmod": "cvxopt", "ldl": "cvxopt", "qdldl": "qdldl"}
 
 
+@functools.cache
 def available_backends() -> tuple[str, ...]:
-    """Names of the sparse backends usable here, fastest first (``superlu`` always), then ``dense``."""
+    """Names of the sparse backends usable here, fastest first (``superlu`` always), then ``dense``;
+    found once per process (each solver asks: every run binds one)."""
     usable = []
     for name, package in _PACKAGES.items():
         try:

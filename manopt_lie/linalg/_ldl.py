@@ -43,7 +43,7 @@ IndexArray = NDArray[np.signedinteger]
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
-    "ldl_new": (_P, [_I, _P, _P, _P, _P]),
+    "ldl_new": (_P, [_I, _P, _P, _P, _P, _I]),
     "ldl_free": (None, [_P]),
     "ldl_factor": (_I, [_P, _P]),
     "ldl_solve": (None, [_P, _I, _I, _P]),
@@ -78,6 +78,10 @@ class SimplicialLDL:
         The entries of each column of ``L``, its diagonal included.
     entries : int
         ``H``'s stored entries (the length of the ``data`` :meth:`factorize` reads).
+    width : int
+        Where ≥ 2, every ``width`` columns of ``B`` are a variable's, whose diagonal block of ``L`` is
+        dense (a structure's variables of one dimension); else the chains of columns that share
+        their rows are found from ``B``'s elimination tree (``ldl.c``).
     cost : (float, float), optional
         ``(Σ_j c_j, Σ_j c_j²)`` over the column counts ``c_j``, where the analysis summed them.
 
@@ -97,7 +101,7 @@ class SimplicialLDL:
 
     def __init__(
         self, triangle: Triangle, perm: NDArray[np.intp], column_counts: NDArray[np.int32], entries: int,
-        cost: tuple[float, float] | None = None,
+        width: int = 1, cost: tuple[float, float] | None = None,
     ) -> None:  # fmt: skip
         indptr, rows, gather = triangle
         lib, at = _library(), _native.address
@@ -106,7 +110,7 @@ class SimplicialLDL:
             cost = (float(counts.sum()), float(np.dot(counts, counts)))
         self.cost = cost
         self._n, self._entries, self._triangle, self._perm = indptr.size - 1, entries, triangle, perm
-        self._handle = lib.ldl_new(self._n, at(indptr), at(rows), at(gather), at(column_counts))
+        self._handle = lib.ldl_new(self._n, at(indptr), at(rows), at(gather), at(column_counts), width)
         if not self._handle:
             raise MemoryError("ldl.c: no memory for the factor (or its entries pass 32-bit indices)")
         self._lib, self._factored = lib, False
@@ -211,7 +215,7 @@ def ldl_backend(
     entries = int(indptr[-1])
     made = early.simplicial if early is not None and variables is not None and early.order is variables else None
     if made is not None:
-        return SimplicialLDL(made.triangle, made.perm, made.column_counts, entries, made.cost)
+        return SimplicialLDL(made.triangle, made.perm, made.column_counts, entries, early.dimension, made.cost)
     if blocks is None or variables is None:
         cols = columns(indptr)
         check_diagonal(cols, indices == cols)
@@ -235,4 +239,4 @@ def ldl_backend(
     triangle, perm = made_triangle
     if triangle[2].size >= TRIM_ENTRIES:
         release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
-    return SimplicialLDL(triangle, perm, counts, entries)
+    return SimplicialLDL(triangle, perm, counts, entries, d)
