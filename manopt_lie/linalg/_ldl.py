@@ -31,7 +31,7 @@ from . import _amd, _patterns
 from ._early import Analysis
 from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
-from ._patterns import Triangle
+from ._patterns import INT32_MAX, Triangle
 from ._triangles import check_diagonal, columns
 from .errors import SingularSystemError
 
@@ -196,7 +196,7 @@ def ldl_backend(
     indptr: IndexArray, indices: IndexArray, blocks: tuple[IndexArray, IndexArray, IndexArray] | None = None,
     variables: NDArray[np.intp] | None = None, early: Analysis | None = None,
 ) -> SimplicialLDL:  # fmt: skip
-    """The backend ``ldl`` of ``H``'s pattern (both triangles, 32-bit indices): analysed by a structure's
+    """The backend ``ldl`` of ``H``'s pattern (both triangles stored): analysed by a structure's
     early analysis where ``early`` made ``B``'s simplicial factor in ``variables`` (its order); else
     here, in the variables' order ``variables`` of the block form ``blocks`` (``(dims, block indptr,
     block rows)``, trusted), else in AMD's order of the coordinates.
@@ -204,17 +204,19 @@ def ldl_backend(
     Raises
     ------
     ValueError
-        If the indices are not 32-bit, or ``H`` misses a diagonal entry.
+        If ``H`` stores 2³¹ entries or more, or misses a diagonal entry.
     RuntimeError
         If the compiled code or AMD is not :func:`available`.
     """
     if not available():
         raise RuntimeError("the backend 'ldl' needs a C compiler and CVXOPT's AMD")
-    if indptr.dtype != np.int32 or indices.dtype != np.int32:
-        raise ValueError("the backend 'ldl' factors patterns of 32-bit indices")
     entries = int(indptr[-1])
-    made = early.simplicial if early is not None and variables is not None and early.order is variables else None
-    if made is not None:
+    if indptr.dtype != np.int32 or indices.dtype != np.int32:
+        if max(entries, indptr.size) >= INT32_MAX:
+            raise ValueError("the backend 'ldl' factors patterns of 32-bit indices: H stores too many entries")
+        indptr, indices = indptr.astype(np.int32), indices.astype(np.int32)
+    if early is not None and early.simplicial is not None and variables is not None and early.order is variables:
+        made = early.simplicial
         return SimplicialLDL(made.triangle, made.perm, made.column_counts, entries, early.dimension, made.cost)
     if blocks is None or variables is None:
         cols = columns(indptr)

@@ -168,6 +168,9 @@ def test_the_explicit_backend_and_its_selected_inverse(rng):
     b = rng.standard_normal(40)
     solver = CholeskySolver("ldl")
     np.testing.assert_allclose(solver(H, b), np.linalg.solve(H.toarray(), b), rtol=1e-10)
+    wide = H.copy()
+    wide.indices, wide.indptr = H.indices.astype(np.int64), H.indptr.astype(np.int64)  # SciPy's would be 32-bit
+    np.testing.assert_allclose(CholeskySolver("ldl")(wide, b), np.linalg.solve(H.toarray(), b), rtol=1e-10)
     factor = cholesky_factor(H, "ldl")
     assert factor.backend == "ldl"
     L = factor.L.toarray()
