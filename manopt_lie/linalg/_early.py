@@ -30,8 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _amd, _patterns
-from ._cholmod_types import _DEFAULTS
-from ._patterns import Int32, StructureBuild, Triangle
+from ._patterns import Int32, Plan, StructureBuild, Triangle
 
 __all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
 
@@ -75,58 +74,22 @@ _NOTHING = Analysis(None, None, None)
 
 
 class EarlyAnalysis:
-    """The analysis of a block pattern, started on a thread at construction (see the module).
+    """The analysis of a block pattern, started on a thread (see the module): by :meth:`start` for a
+    structure built already, or with its build (:meth:`start_with`).
 
     Parameters
     ----------
-    dims : ndarray of int64, shape (n_vars,)
-        The variables' dimensions, all ``dimension``.
+    plan : Plan
+        Where the analysis's arrays are and its handle (``patterns.c: plan_structure``), which the
+        plan keeps, with every array the thread reads or writes, until it is joined.
+    nv, n : int
+        The variables and coordinates.
     dimension : int
-    indptr : ndarray of int32, shape (n + 1,)
-        ``H``'s CSC ``indptr``.
-    block_indptr, block_rows : ndarray of int32
-        The block pattern (both triangles, every diagonal block).
-    build : StructureBuild, optional
-        The structure's build, not run yet: the thread runs it first (:meth:`built` waits for it),
-        and the pattern is what it makes (``indptr``, ``block_indptr`` and ``block_rows`` are
-        then its arrays).
-
-    The arrays must not change until :meth:`result` (the structure's never do).
+        Every variable's dimension.
     """
 
-    _handle: int | None = None  # patterns.c's, until joined
-
-    def __init__(
-        self, dims: NDArray[np.int64], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32,
-        build: StructureBuild | None = None,
-    ) -> None:  # fmt: skip
-        self._library = library = _patterns._library()  # found by start(), with AMD
-        nv, n = dims.size, indptr.size - 1
-        # What the thread writes, kept until it is joined (as what it reads), and its arguments: cut
-        # from two buffers, the build's where it has them.
-        if build is not None and build.analysis is not None:
-            wide, at_wide, narrow, at_narrow = build.analysis
-        else:
-            lengths64, lengths32 = _patterns.analysis_layout(nv, n, int(indptr[-1]))
-            wide, at_wide = _patterns.carve(np.int64, lengths64)
-            narrow, at_narrow = _patterns.carve(np.int32, lengths32)
-        *self._outputs, self._perm, self._status, cost, self._build_status, args = wide
-        self._cost = cost.view(np.float64)  # (lnz, fl)
-        self._order32, self._columns, *triangle = narrow
-        self._triangle: Triangle = (triangle[0], triangle[1], triangle[2])
-        self._inputs = (dims, indptr, block_indptr, block_rows, build)
-        self._dimension = dimension
-        self._status_at, self._build_status_at = at_wide[4], at_wide[6]  # for __del__ (also at exit) and built()
-        at = _patterns._at
-        args[:] = [
-            _amd.amd_order_address(), nv, dimension, *(at(a) for a in self._inputs[:4]), _patterns.SIMPLICIAL_FILL,
-            triangle[1].size, at_narrow[0], *at_wide[:3], *at_narrow[2:], at_wide[3], at_narrow[1], at_wide[5],
-        ]  # fmt: skip
-        build_at = None if build is None else build.address
-        handle = library.early_start(build_at, at_wide[7], _DEFAULTS["supernodal_switch"])
-        if not handle:
-            raise MemoryError("patterns.c: no memory to start the analysis")
-        self._handle = handle
+    def __init__(self, plan: Plan, nv: int, n: int, dimension: int) -> None:
+        self._plan, self._nv, self._n, self._dimension = plan, nv, n, dimension
         self._lock = threading.Lock()
         self._result: Analysis | None = None
 
@@ -137,18 +100,26 @@ class EarlyAnalysis:
     ) -> EarlyAnalysis | None:  # fmt: skip
         """An analysis started for this pattern of variables of one ``dimension`` (0: of several), or
         ``None`` where none is: more than :data:`EARLY_ENTRIES` entries, variables of several
-        dimensions, indices that are not 32-bit, or no compiled library or AMD here."""
-        if int(indptr[-1]) > EARLY_ENTRIES or not all(a.dtype == np.int32 for a in (indptr, block_indptr, block_rows)):
+        dimensions, indices that are not 32-bit, or no compiled library or AMD here. The arrays must
+        not change until :meth:`result` (a structure's never do)."""
+        entries = int(indptr[-1])
+        if entries > EARLY_ENTRIES or not all(a.dtype == np.int32 for a in (indptr, block_indptr, block_rows)):
             return None
-        return cls(dims, dimension, indptr, block_indptr, block_rows) if cls._runs(dims, dimension) else None
+        if not cls._runs(dims, dimension):
+            return None
+        nv, n = dims.size, indptr.size - 1
+        flags = _patterns.PLAN_ANALYSIS | _patterns.PLAN_START
+        plan = _patterns.Plan(nv, n, entries, flags, dims, indptr, block_pattern=(block_indptr, block_rows),
+                              dimension=dimension)  # fmt: skip
+        return cls(plan, nv, n, dimension)
 
     @classmethod
     def start_with(cls, dims: NDArray[np.intp], dimension: int, build: StructureBuild) -> EarlyAnalysis | None:
-        """An analysis started after ``build`` on the thread, as :meth:`start` would start one after it,
-        where ``build`` holds its arrays (:meth:`entries`); else ``None``."""
-        if build.analysis is None:
+        """The analysis ``build`` planned and started after it on the thread (where it was given a
+        ``dimension``: :meth:`entries`), else ``None``."""
+        if build.plan.handle is None:
             return None
-        return cls(dims, dimension, build.indptr, build.block_ptr, build.candidates, build)
+        return cls(build.plan, dims.size, build.indptr.size - 1, dimension)
 
     @classmethod
     def entries(cls, dims: NDArray[np.intp], dimension: int) -> int:
@@ -165,42 +136,33 @@ class EarlyAnalysis:
         )  # fmt: skip
 
     def built(self) -> int | None:
-        """Waits for the build (given at construction) and returns its status, or ``None`` in a process
-        forked from the one that started it (its arrays are unwritten: build them here)."""
-        handle = self._handle
-        if handle is None:
-            return None
-        if self._library.early_built(handle, self._build_status_at) != 0:
-            return None
-        return int(self._build_status[0])
-
-    def _join(self) -> bool:
-        """Wait for the thread (once): whether its statuses were written (not in a forked process, where
-        the thread stayed in the parent). Until then, this object keeps every array the thread touches."""
-        handle, self._handle = self._handle, None
-        return handle is not None and self._library.early_join(handle, self._status_at) == 0
-
-    def __del__(self) -> None:
-        self._join()  # never free what the thread may still write
+        """Waits for the build (planned with the analysis) and returns its status, or ``None`` in a
+        process forked from the one that started it (its arrays are unwritten: build them here)."""
+        return self._plan.built()
 
     def result(self) -> Analysis:
         """What the analysis made, once its thread is done (waited for at the first call)."""
         with self._lock:
             if self._result is None:
-                self._result = self._read() if self._join() else _NOTHING
+                self._result = self._read() if self._plan.join() else _NOTHING
             return self._result
 
     def _read(self) -> Analysis:
-        amd, symbolic, triangle = (int(s) for s in self._status)
+        plan, nv, n = self._plan, self._nv, self._n
+        amd, symbolic, triangle = plan.int64(_patterns.STATUS, 3).tolist()
         if amd not in _amd.SUCCESS:
             return _NOTHING
-        order, variables, counts = self._outputs
         made = None
         if triangle == 0:
-            cost = (float(self._cost[0]), float(self._cost[1]))
-            indptr, rows, gather = self._triangle
+            cost = plan.int64(_patterns.COST, 2).view(np.float64).tolist()
+            indptr = plan.int32(_patterns.TRI_INDPTR, n + 1)
             size = int(indptr[-1])  # below the room where the structure was built on the thread
-            perm = self._perm.astype(np.intp, copy=False)
-            made = Simplicial(cost, self._columns, (indptr, rows[:size], gather[:size]), perm)
-        symbolic_ = (variables.astype(np.intp, copy=False), counts) if symbolic == 0 else None
-        return Analysis(order.astype(np.intp, copy=False), symbolic_, made, self._dimension)
+            triangle_ = (indptr, plan.int32(_patterns.TRI_ROWS, size), plan.int32(_patterns.TRI_GATHER, size))
+            perm = plan.int64(_patterns.PERM, n).astype(np.intp, copy=False)
+            made = Simplicial((cost[0], cost[1]), plan.int32(_patterns.COLCOUNT, n), triangle_, perm)
+        symbolic_ = None
+        if symbolic == 0:
+            variables = plan.int64(_patterns.VARIABLES, nv).astype(np.intp, copy=False)
+            symbolic_ = (variables, plan.int64(_patterns.COUNTS, nv))
+        order = plan.int64(_patterns.ORDER, nv).astype(np.intp, copy=False)
+        return Analysis(order, symbolic_, made, self._dimension)

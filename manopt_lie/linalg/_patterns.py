@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import itertools
 from collections.abc import Sequence
 from typing import Any
 
@@ -25,10 +24,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import _native
-from . import _factors
+from . import _amd, _factors
+from ._cholmod_types import _DEFAULTS
 from ._factors import FactorIndex
 
-__all__ = ["StructureBuild", "analysis_layout", "block_symbolic", "hessian_pattern", "permuted_block_triangle"]
+__all__ = ["Plan", "StructureBuild", "block_symbolic", "hessian_pattern", "permuted_block_triangle"]
 
 SIMPLICIAL_FILL = 8
 """The most blocks of ``L`` per stored block of ``H`` :func:`block_symbolic` counts before it leaves
@@ -50,19 +50,8 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "early_start": (_P, [_P, _P, ctypes.c_double]),
     "early_built": (ctypes.c_int, [_P, _P]),
     "early_join": (ctypes.c_int, [_P, _P]),
+    "plan_structure": (_I, [_P, ctypes.c_double]),
 }
-
-
-ANALYSIS_ARGUMENTS = 19
-"""``patterns.c: early_start``'s packed arguments."""
-
-
-def analysis_layout(nv: int, n: int, entries: int) -> tuple[list[int], list[int]]:
-    """The lengths of the int64 and of the int32 arrays an early analysis (``_early``) of ``nv`` variables
-    and ``n`` coordinates, ``H`` holding at most ``entries`` entries, keeps: its outputs, statuses and
-    packed arguments, and its triangle (:func:`carve`)."""
-    size = (entries + n) // 2  # the triangle, its diagonal included
-    return [nv, nv, nv, n, 3, 2, 1, ANALYSIS_ARGUMENTS], [nv, n, n + 1, size, size]
 
 
 @functools.cache
@@ -73,68 +62,151 @@ def _library() -> Any:
 
 _at = _native.address
 
+PLAN_BUILD, PLAN_ANALYSIS, PLAN_START = 1, 2, 4
+"""``patterns.c: plan_structure``'s flags: the build's arrays, the analysis's, and the analysis started."""
+# The entries of its table: where each array starts in one of the two buffers (then every factor
+# type's positions and columns), and the triangle's room.
+(_BUILD_ARGS, _EARLY_ARGS, SIZES, OFFSETS, ORDER, VARIABLES, COUNTS, PERM, STATUS, COST, BUILD_STATUS, BPTR,
+ CANDIDATES, DIAGONAL, AMD_ORDER, COLCOUNT, TRI_INDPTR, TRI_ROWS, TRI_GATHER, TRI_SIZE, _TABLE) = range(21)  # fmt: skip
 
-def carve(dtype: type[np.number], sizes: Sequence[int]) -> tuple[list[NDArray[Any]], list[int]]:
-    """Arrays of these sizes cut from one new buffer, and their addresses: one allocation and one
-    address taken, not one per array (each ~1 µs in a loop, several in a cold solve)."""
-    starts = list(itertools.accumulate(sizes, initial=0))
-    buffer = np.empty(starts[-1], dtype=dtype)
-    base, itemsize = _at(buffer) if starts[-1] else 0, buffer.itemsize
-    return [buffer[a:b] for a, b in itertools.pairwise(starts)], [base + itemsize * a for a in starts[:-1]]
+
+class Plan:
+    """The arrays of a structure's build and of its analysis (``flags``), cut from two new buffers by
+    ``patterns.c: plan_structure``, which packs the C's arguments there and, with :data:`PLAN_START`,
+    starts the analysis on the worker thread (after the build where one is planned): one call, and
+    views made only of the arrays read, when they are read (:meth:`int64`, :meth:`int32`).
+
+    Parameters
+    ----------
+    nv, n, room : int
+        Variables, coordinates, and the most entries ``H`` may store.
+    flags : int
+        :data:`PLAN_BUILD`, :data:`PLAN_ANALYSIS` and :data:`PLAN_START`, or'ed.
+    dims : ndarray of int64, shape (nv,)
+    indptr : ndarray of int32, shape (n + 1,)
+        ``H``'s (written by the build; read by the analysis).
+    indices : ndarray of int32, shape (room,), optional
+        ``H``'s, written by the build.
+    block_pattern : (indptr, rows) of int32, optional
+        The pattern an analysis without a build reads.
+    factors : sequence of FactorIndex
+        The build's factor types.
+    dimension : int
+        The variables' one dimension (the analysis's).
+
+    Attributes
+    ----------
+    handle : int or None
+        The analysis started (``patterns.c: early_start``'s handle), until :meth:`join`.
+    """
+
+    handle: int | None = None
+
+    def __init__(
+        self, nv: int, n: int, room: int, flags: int, dims: NDArray[np.int64], indptr: Int32,
+        indices: Int32 | None = None, block_pattern: tuple[Int32, Int32] | None = None,
+        factors: Sequence[FactorIndex] = (), dimension: int = 0,
+    ) -> None:  # fmt: skip
+        k = len(factors)
+        ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
+        arities = [a.shape[1] for a in ids]
+        len64, len32 = _TABLE + 2 * k, 0  # as plan_structure lays them out (it checks them)
+        if flags & PLAN_BUILD:
+            len64 += 17 + 3 * k + 2 + nv + 1
+            per_edge = [a * (a - 1) + f.width**2 + f.width for f, a in zip(factors, arities, strict=True)]
+            len32 += 2 * nv + 1 + n + sum(f.m * e for f, e in zip(factors, per_edge, strict=True))
+        if flags & PLAN_ANALYSIS:
+            len64 += 19 + 3 * nv + n + 6
+            len32 += nv + 2 * n + 1 + 2 * ((room + n) // 2)
+        self._buffers = self._int64, self._int32 = np.empty(len64, np.int64), np.empty(len32, np.int32)
+        bptr, brows = (0, 0) if block_pattern is None else (_at(block_pattern[0]), _at(block_pattern[1]))
+        amd = _amd.amd_order_address() if flags & PLAN_ANALYSIS else 0
+        head = np.array(
+            [nv, k, n, room, flags, dimension, _at(dims), _at(indptr), 0 if indices is None else _at(indices), bptr,
+             brows, _at(self._int64), len64, _at(self._int32), len32, amd or 0, SIMPLICIAL_FILL,
+             *(_at(a) for a in ids), *(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)],
+            dtype=np.int64,
+        )  # fmt: skip
+        self._inputs = (head, dims, indptr, indices, block_pattern, ids)  # what the C reads, kept with the plan
+        self._library, self._base64 = _library(), _at(self._int64)  # (for __del__, also at exit)
+        handle = self._library.plan_structure(_at(head), _DEFAULTS["supernodal_switch"])
+        if handle == -2:
+            raise MemoryError("patterns.c: no memory to start the analysis")
+        if handle < 0:
+            raise RuntimeError("patterns.c: the plan's buffers are not as long as the plan")
+        self.handle = handle or None
+        self._table: list[int] = self._int64[: _TABLE + 2 * k].tolist()
+
+    def int64(self, entry: int, length: int) -> NDArray[np.int64]:
+        """The int64 array of this table ``entry`` (its first ``length`` entries)."""
+        start = self._table[entry]
+        return self._int64[start : start + length]
+
+    def int32(self, entry: int, length: int) -> Int32:
+        """The int32 array of this table ``entry`` (its first ``length`` entries)."""
+        start = self._table[entry]
+        return self._int32[start : start + length]
+
+    def address64(self, entry: int) -> int:
+        """The address of the int64 array of this table ``entry``."""
+        return self._base64 + 8 * self._table[entry]
+
+    @property
+    def triangle_size(self) -> int:
+        """The room of the analysis's triangle."""
+        return self._table[TRI_SIZE]
+
+    def built(self) -> int | None:
+        """Waits for the build planned with the analysis and returns its status, or ``None`` in a process
+        forked from the one that started it (its arrays are unwritten: build them here)."""
+        if self.handle is None or self._library.early_built(self.handle, self.address64(BUILD_STATUS)) != 0:
+            return None
+        return int(self._int64[self._table[BUILD_STATUS]])
+
+    def join(self) -> bool:
+        """Wait for the analysis's thread (once): whether its statuses were written (not in a forked
+        process, where the thread stayed in the parent). Until then, this plan keeps every array the
+        thread touches."""
+        handle, self.handle = self.handle, None
+        return handle is not None and self._library.early_join(handle, self.address64(STATUS)) == 0
+
+    def __del__(self) -> None:
+        self.join()  # never free what the thread may still write
+
+    def build_arguments(self) -> int:
+        """The address of ``build_structure``'s packed arguments."""
+        return self.address64(_BUILD_ARGS)
 
 
 class StructureBuild:
     """A structure's compiled build (``patterns.c: build_structure``), planned: its arrays made empty
-    and its arguments packed in one array for the C, which fills them now (:meth:`run`) or on the
-    worker thread, before the structure's analysis there (``_early.EarlyAnalysis``, ``build=``),
-    while the caller goes on. :meth:`result` then reads them. Made by :func:`hessian_pattern`, with
-    the arrays of that analysis (``analysis``) cut from the same two buffers.
+    and its arguments packed for the C (:class:`Plan`), which fills them now (:meth:`run`) or on the
+    worker thread, before the structure's analysis there (``dimension``: planned and started with it,
+    ``_early.EarlyAnalysis.start_with``), while the caller goes on. :meth:`result` then reads them.
+    Made by :func:`hessian_pattern`.
 
     Attributes
     ----------
     room : int
         The most entries ``H`` may store (no two edges joining the same variables).
-    block_ptr, candidates, indptr : ndarray of int32
-        The block pattern's ``indptr``, the room its rows are gathered in (the ``nb`` rows first,
-        once built) and ``H``'s ``indptr``: what the analysis reads.
-    analysis : tuple or None
-        The analysis's int64 arrays and their addresses, then its int32 arrays and theirs
-        (:func:`analysis_layout`), where asked for.
+    plan : Plan
+        The build's arrays, and the analysis's where it is planned (``plan.handle``: started).
     """
 
     def __init__(
-        self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex], analysis: bool = False
+        self, dims: NDArray[np.intp], n: int, room: int, factors: Sequence[FactorIndex], dimension: int = 0
     ) -> None:
-        nv, k = dims.size, len(factors)
         self._factors, self._dims, self.room = factors, dims, room
-        ids = self._ids = [np.ascontiguousarray(f.var_ids, dtype=np.int64) for f in factors]
-        arities = [a.shape[1] for a in ids]
-        # m, arity and the slots' dimensions of every factor, after build's 17 arguments and the 3 k
-        # pointers they point to (the edges, the positions, the columns); then nb and nnz, the offsets.
-        head = [*(f.m for f in factors), *arities, *(d for f in factors for d in f.slot_dims)]
-        packed = 17 + 3 * k
-        wide, narrow = analysis_layout(nv, n, room) if analysis else ([], [])
-        (args, self._sizes, self._offsets, *wide_arrays), at64 = carve(np.int64, [packed + len(head), 2, nv + 1, *wide])
-        self.candidates = np.empty(nv + sum(f.m * a * (a - 1) for f, a in zip(factors, arities, strict=True)), np.int32)
         # H's index arrays stand alone: SciPy copies a view of a larger buffer into its matrices, whose
-        # patterns a solver then no longer recognizes as the structure's. The rest is cut from one buffer.
-        self.block_ptr, self.indptr = np.empty(nv + 1, np.int32), np.empty(n + 1, np.int32)
-        self._indices = np.empty(room, np.int32)
-        lengths = [n, *(f.m * f.width**2 for f in factors), *(f.m * f.width for f in factors)]
-        (self._diagonal, *arrays), at = carve(np.int32, [*lengths, *narrow])
-        self._scatters = arrays[: 2 * k]
-        self.analysis = (wide_arrays, at64[3:], arrays[2 * k :], at[1 + 2 * k :]) if analysis else None
-        self._dims64 = np.ascontiguousarray(dims, dtype=np.int64)
-        self.address, heads, pointers = at64[0], at64[0] + 8 * packed, at64[0] + 8 * 17
-        args[:] = [
-            nv, k, _at(self._dims64), at64[2], heads, heads + 8 * k, heads + 16 * k, pointers,
-            _at(self.block_ptr), _at(self.candidates), _at(self.indptr), _at(self._indices), room, at[0],
-            pointers + 8 * k, pointers + 16 * k, at64[1], *(_at(a) for a in ids), *at[1 : 1 + 2 * k], *head,
-        ]  # fmt: skip
+        # patterns a solver then no longer recognizes as the structure's. The rest is cut from the plan's.
+        self.indptr, self._indices = np.empty(n + 1, np.int32), np.empty(room, np.int32)
+        flags = PLAN_BUILD | (PLAN_ANALYSIS | PLAN_START if dimension else 0)
+        dims64 = np.ascontiguousarray(dims, dtype=np.int64)
+        self.plan = Plan(dims.size, n, room, flags, dims64, self.indptr, self._indices, None, factors, dimension)
 
     def run(self) -> Pattern:
         """Build here and now: :meth:`result`."""
-        return self.result(_library().build_structure(self.address))
+        return self.result(self.plan._library.build_structure(self.plan.build_arguments()))
 
     def result(self, status: int) -> Pattern:
         """The built arrays, given the build's status: the block pattern ``(indptr, rows)``, ``H``'s
@@ -148,28 +220,31 @@ class StructureBuild:
             As :func:`~manopt_lie.linalg._factors.check_edges`, for the first factor type with an edge
             out of range, on a variable twice, or on a variable of another dimension than its slot's.
         """
+        plan, nv, k = self.plan, self._dims.size, len(self._factors)
+        nb, nnz = plan.int64(SIZES, 2).tolist()
         if status == -3:  # NumPy's checks name the edge
-            f = int(self._sizes[0])
-            _factors.check_edges(f, self._factors[f].var_ids, self._dims)
+            _factors.check_edges(nb, self._factors[nb].var_ids, self._dims)
         if status == -1:
             raise MemoryError("patterns.c: no memory for the structure")
         if status != 0:  # the room bounds every pattern of these edges
             raise RuntimeError(f"patterns.c: the structure's build failed ({status})")
-        nb, nnz = (int(c) for c in self._sizes)
-        block_rows = self.candidates[:nb].copy()  # not the candidates' room
+        block_rows = plan.int32(CANDIDATES, nb).copy()  # not the candidates' room
         indices = self._indices if nnz == self.room else self._indices[:nnz].copy()  # edges joining the same variables
-        k = len(self._factors)
-        scatters = list(zip(self._scatters[:k], self._scatters[k:], strict=True))
-        offsets = self._offsets.astype(np.intp, copy=False)
-        return (self.block_ptr, block_rows), self.indptr, indices, self._diagonal, scatters, offsets
+        scatters = [(plan.int32(_TABLE + f, x.m * x.width**2), plan.int32(_TABLE + k + f, x.m * x.width))
+                    for f, x in enumerate(self._factors)]  # fmt: skip
+        offsets = plan.int64(OFFSETS, nv + 1).astype(np.intp, copy=False)
+        diagonal = plan.int32(DIAGONAL, self.indptr.size - 1)
+        return (plan.int32(BPTR, nv + 1), block_rows), self.indptr, indices, diagonal, scatters, offsets
 
 
 def hessian_pattern(
-    dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex], analysis_entries: int = 0
-) -> StructureBuild | None:
+    dims: NDArray[np.intp], n: int, squares: int, factors: Sequence[FactorIndex], analysis_entries: int = 0,
+    dimension: int = 0,
+) -> StructureBuild | None:  # fmt: skip
     """The compiled build of a structure's arrays from its variables' dimensions (``n`` in all,
     ``squares`` their squares' sum) and factor types, planned (:class:`StructureBuild`, with the
-    arrays of an analysis where ``H`` holds at most ``analysis_entries`` entries), or ``None``."""
+    analysis of its variables of one ``dimension`` planned and started after it where ``H`` holds at
+    most ``analysis_entries`` entries), or ``None``."""
     # H's entries where no two edges join the same variables: the diagonal blocks, and each edge's
     # blocks off the diagonal (W² less the slots' own d²); fewer where some do.
     room = squares + sum(f.m * (f.width**2 - sum(d * d for d in f.slot_dims)) for f in factors)
@@ -178,7 +253,7 @@ def hessian_pattern(
         or any(f.m * f.width**2 * 4 > _factors.WHOLE_SCATTER_BYTES for f in factors)
     ):  # fmt: skip
         return None
-    return StructureBuild(dims, n, room, factors, room <= analysis_entries)
+    return StructureBuild(dims, n, room, factors, dimension if room <= analysis_entries else 0)
 
 
 def _int32(*arrays: NDArray[np.signedinteger]) -> bool:
@@ -212,7 +287,7 @@ def permuted_block_triangle(
 def block_symbolic(
     block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger], order: NDArray[np.intp],
     bounded: bool = True,
-) -> tuple[NDArray[np.intp], NDArray[np.int64]] | None:
+) -> tuple[NDArray[np.intp], NDArray[np.int64]] | None:  # fmt: skip
     """The variables' simplicial symbolic factorization in ``order`` (``patterns.c:
     block_symbolic``): their postordered order and the blocks in each column of ``L`` (its diagonal
     block included), in that order; ``None`` without the library or where ``L`` would hold more

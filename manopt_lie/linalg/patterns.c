@@ -661,3 +661,94 @@ int early_join(void* handle, i64* status) {
   free(a);
   return 0;
 }
+
+/* A structure's build and its analysis planned in the caller's two buffers and, where asked, started
+ * (_patterns.StructureBuild, _early.EarlyAnalysis): every array cut from the buffers, the arguments
+ * of build_structure and early_start packed there, and, first in buf64, a table of where each array
+ * starts (PLAN_* entries, then each factor type's positions and columns: the caller makes its views
+ * from it when it reads them). head (int64; HEAD_* below, then per factor type its edges' address,
+ * and its m, arity and slot dimensions, which the build reads there) gives the sizes, the flags
+ * (PLAN_BUILD: the build's arrays and arguments; PLAN_ANALYSIS: the analysis's, of H's entries
+ * bounded by room; PLAN_START: start it, after the build where one is planned), the arrays the
+ * caller keeps apart (dims; H's indptr and indices, which SciPy takes as they are; the block pattern
+ * where the caller built it), the buffers and their lengths, AMD's address and the fill budget.
+ * Returns the analysis's handle where started; 0 where none is; -1 where the buffers are not as long
+ * as the plan (the caller sizes them as it does); -2 without memory to start. */
+enum { HEAD_NV, HEAD_K, HEAD_N, HEAD_ROOM, HEAD_FLAGS, HEAD_D, HEAD_DIMS, HEAD_INDPTR, HEAD_INDICES, HEAD_BPTR,
+       HEAD_BROWS, HEAD_BUF64, HEAD_LEN64, HEAD_BUF32, HEAD_LEN32, HEAD_AMD, HEAD_FILL, HEAD_FACTORS };
+enum { PLAN_BUILD = 1, PLAN_ANALYSIS = 2, PLAN_START = 4 };
+enum { PLAN_BUILD_ARGS, PLAN_EARLY_ARGS, PLAN_SIZES, PLAN_OFFSETS, PLAN_ORDER, PLAN_VARIABLES, PLAN_COUNTS,
+       PLAN_PERM, PLAN_STATUS, PLAN_COST, PLAN_BUILD_STATUS, PLAN_BPTR, PLAN_CANDIDATES, PLAN_DIAGONAL,
+       PLAN_AMD_ORDER, PLAN_COLCOUNT, PLAN_TRI_INDPTR, PLAN_TRI_ROWS, PLAN_TRI_GATHER, PLAN_TRI_SIZE, PLAN_TABLE };
+#define AT(i) ((i64)(intptr_t)(i))
+i64 plan_structure(const i64* head, double supernodal_switch) {
+  i64 nv = head[HEAD_NV], k = head[HEAD_K], n = head[HEAD_N], room = head[HEAD_ROOM], flags = head[HEAD_FLAGS];
+  i64 *buf64 = (i64*)(intptr_t)head[HEAD_BUF64], *table = buf64;
+  i32* buf32 = (i32*)(intptr_t)head[HEAD_BUF32];
+  const i64 *ids = head + HEAD_FACTORS, *m = ids + k, *arity = m + k, *slot_dims = arity + k;
+  i64 at64 = PLAN_TABLE + 2 * k, at32 = 0;
+  for (i64 t = 0; t < PLAN_TABLE + 2 * k; ++t) table[t] = -1;
+  i64 bptr = head[HEAD_BPTR], brows = head[HEAD_BROWS]; /* the block pattern the analysis reads */
+  if (flags & PLAN_BUILD) {
+    i64 candidates = nv;
+    for (i64 f = 0; f < k; ++f) candidates += m[f] * arity[f] * (arity[f] - 1);
+    table[PLAN_BUILD_ARGS] = at64, at64 += 17 + 3 * k;
+    table[PLAN_SIZES] = at64, at64 += 2;
+    table[PLAN_OFFSETS] = at64, at64 += nv + 1;
+    table[PLAN_BPTR] = at32, at32 += nv + 1;
+    table[PLAN_CANDIDATES] = at32, at32 += candidates;
+    table[PLAN_DIAGONAL] = at32, at32 += n;
+    for (int columns = 0; columns < 2; ++columns) /* every factor type's positions (m W^2), then columns (m W) */
+      for (i64 f = 0, s0 = 0; f < k; s0 += arity[f], ++f) {
+        i64 w = 0;
+        for (i64 s = 0; s < arity[f]; ++s) w += slot_dims[s0 + s];
+        table[PLAN_TABLE + columns * k + f] = at32, at32 += m[f] * w * (columns ? 1 : w);
+      }
+    bptr = AT(buf32 + table[PLAN_BPTR]), brows = AT(buf32 + table[PLAN_CANDIDATES]); /* the build's */
+  }
+  i64 size = (room + n) / 2; /* the triangle's room: one triangle of H, its diagonal included */
+  if (flags & PLAN_ANALYSIS) {
+    table[PLAN_EARLY_ARGS] = at64, at64 += 19;
+    table[PLAN_ORDER] = at64, at64 += nv;
+    table[PLAN_VARIABLES] = at64, at64 += nv;
+    table[PLAN_COUNTS] = at64, at64 += nv;
+    table[PLAN_PERM] = at64, at64 += n;
+    table[PLAN_STATUS] = at64, at64 += 3;
+    table[PLAN_COST] = at64, at64 += 2;
+    table[PLAN_BUILD_STATUS] = at64, at64 += 1;
+    table[PLAN_AMD_ORDER] = at32, at32 += nv;
+    table[PLAN_COLCOUNT] = at32, at32 += n;
+    table[PLAN_TRI_INDPTR] = at32, at32 += n + 1;
+    table[PLAN_TRI_ROWS] = at32, at32 += size;
+    table[PLAN_TRI_GATHER] = at32, at32 += size;
+    table[PLAN_TRI_SIZE] = size;
+  }
+  if (at64 != head[HEAD_LEN64] || at32 != head[HEAD_LEN32]) return -1;
+  i64* build_args = NULL;
+  if (flags & PLAN_BUILD) {
+    i64* a = build_args = buf64 + table[PLAN_BUILD_ARGS];
+    i64* pointers = a + 17; /* the edges', the positions' and the columns' addresses, k each */
+    a[0] = nv, a[1] = k, a[2] = head[HEAD_DIMS], a[3] = AT(buf64 + table[PLAN_OFFSETS]), a[4] = AT(m);
+    a[5] = AT(arity), a[6] = AT(slot_dims), a[7] = AT(pointers), a[8] = AT(buf32 + table[PLAN_BPTR]);
+    a[9] = AT(buf32 + table[PLAN_CANDIDATES]), a[10] = head[HEAD_INDPTR], a[11] = head[HEAD_INDICES], a[12] = room;
+    a[13] = AT(buf32 + table[PLAN_DIAGONAL]), a[14] = AT(pointers + k), a[15] = AT(pointers + 2 * k);
+    a[16] = AT(buf64 + table[PLAN_SIZES]);
+    for (i64 f = 0; f < k; ++f) {
+      pointers[f] = ids[f];
+      pointers[k + f] = AT(buf32 + table[PLAN_TABLE + f]);
+      pointers[2 * k + f] = AT(buf32 + table[PLAN_TABLE + k + f]);
+    }
+  }
+  if (!(flags & PLAN_ANALYSIS)) return 0;
+  i64* a = buf64 + table[PLAN_EARLY_ARGS];
+  a[0] = head[HEAD_AMD], a[1] = nv, a[2] = head[HEAD_D], a[3] = head[HEAD_DIMS], a[4] = head[HEAD_INDPTR];
+  a[5] = bptr, a[6] = brows, a[7] = head[HEAD_FILL], a[8] = size, a[9] = AT(buf32 + table[PLAN_AMD_ORDER]);
+  a[10] = AT(buf64 + table[PLAN_ORDER]), a[11] = AT(buf64 + table[PLAN_VARIABLES]);
+  a[12] = AT(buf64 + table[PLAN_COUNTS]), a[13] = AT(buf32 + table[PLAN_TRI_INDPTR]);
+  a[14] = AT(buf32 + table[PLAN_TRI_ROWS]), a[15] = AT(buf32 + table[PLAN_TRI_GATHER]);
+  a[16] = AT(buf64 + table[PLAN_PERM]), a[17] = AT(buf32 + table[PLAN_COLCOUNT]), a[18] = AT(buf64 + table[PLAN_COST]);
+  if (!(flags & PLAN_START)) return 0;
+  void* handle = early_start(build_args, a, supernodal_switch);
+  return handle ? AT(handle) : -2;
+}
+#undef AT

@@ -139,7 +139,7 @@ class BlockStructure:
         squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
         dimension = lowest if uniform else 0
         entries = EarlyAnalysis.entries(self.dims, dimension) if on_worker else 0  # its arrays cut with the build's
-        build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors, entries)
+        build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors, entries, dimension)
         if build is None and uniform:
             for k, a in enumerate(ids):
                 check(k, a, self.dims)
