@@ -210,13 +210,16 @@ def load(source: str) -> Any:
         return _LIBRARIES[key]
 
 
-def load_source(package: str, name: str, signatures: Mapping[str, tuple[Any, Sequence[Any]]]) -> Any:
-    """The C file ``name`` of ``package`` compiled and loaded (:func:`load`), its functions given
-    these prototypes ``{function: (restype, argtypes)}``; ``None`` where native code is not
-    :func:`enabled` or cannot be built."""
+def load_source(
+    package: str, name: str | Sequence[str], signatures: Mapping[str, tuple[Any, Sequence[Any]]]
+) -> Any:
+    """The C file ``name`` of ``package`` (or several, compiled together as one) compiled and loaded
+    (:func:`load`), its functions given these prototypes ``{function: (restype, argtypes)}``;
+    ``None`` where native code is not :func:`enabled` or cannot be built."""
     if not enabled():
         return None
-    library = load(resources.files(package).joinpath(name).read_text())
+    names = [name] if isinstance(name, str) else list(name)
+    library = load("\n".join(resources.files(package).joinpath(n).read_text() for n in names))
     if library is not None:
         declare(library, signatures)
     return library

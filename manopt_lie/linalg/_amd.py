@@ -58,7 +58,7 @@ def _order(lib: Any, indptr: NDArray[np.int32], indices: NDArray[np.int32]) -> N
 
 @functools.cache
 def amd_order_address() -> int | None:
-    """The address of the checked ``amd_order`` (for C that calls it, ``patterns.c: early_start``),
+    """The address of the checked ``amd_order`` (for C that calls it, ``early.c: early_start``),
     or ``None``."""
     lib = _library()
     return None if lib is None else ctypes.cast(lib.amd_order, c_void_p).value

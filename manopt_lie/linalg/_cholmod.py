@@ -330,7 +330,7 @@ class Cholmod:
             variables = _array(block.Perm, np.int32, dims.size).astype(np.intp)
             if not block.is_super:
                 counts = _array(block.ColCount, np.int32, dims.size).astype(np.int64)
-        # B's simplicial factor made early from this symbolic (patterns.c: early_run, the same sums)
+        # B's simplicial factor made early from this symbolic (early.c: early_run, the same sums)
         simplicial = early.simplicial if early and found is not None and found is early.symbolic else None
         if uniform:
             if simplicial is not None:

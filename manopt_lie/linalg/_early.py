@@ -2,14 +2,16 @@
 
 The first solve of a pattern orders the variables (AMD), analyses the variables' graph in that
 order (``patterns.c: block_symbolic``), expands that to the symbolic factor of ``B = P H Pᵀ`` and
-builds the triangle of ``B`` that CHOLMOD factors (``permuted_triangle``). None of it reads the
-values of ``H``, only the block pattern, which :class:`~manopt_lie.linalg.BlockStructure` has as
-soon as it is built, before the first linearization assembles ``H`` and ``g`` (CSAIL: 0.3 ms,
-about what the analysis takes). So the structure starts these steps in C (``patterns.c:
-early_start``) on a worker thread, which needs no GIL, and the first analysis takes what they made
+builds the triangle of ``B`` that the simplicial ``LDLᵀ`` factors (``permuted_triangle``): the
+compiled one (:mod:`~manopt_lie.linalg._ldl`) or CHOLMOD's. None of it reads the values of ``H``,
+only the block pattern, which :class:`~manopt_lie.linalg.BlockStructure` has as soon as it is
+built, before the first linearization assembles ``H`` and ``g`` (CSAIL: 0.3 ms, about what the
+analysis takes). So the structure starts these steps in C (``early.c: early_start``) on a worker
+thread, which needs no GIL, and the first analysis takes what they made
 (:meth:`EarlyAnalysis.result`) instead of making it. A structure whose build can wait (a problem's,
 its residuals' lengths declared) has the thread build it first, while the problem evaluates its
-first residuals (:meth:`EarlyAnalysis.start_with`).
+first residuals (:meth:`EarlyAnalysis.start_with`): the build and the analysis are planned and
+started in one call (:class:`~manopt_lie.linalg._patterns.Plan`).
 
 Each step runs where the one before succeeded; one that did not run or failed leaves its result
 ``None``, and the analysis makes it as before. ``B``'s factor and triangle are made only where
@@ -80,7 +82,7 @@ class EarlyAnalysis:
     Parameters
     ----------
     plan : Plan
-        Where the analysis's arrays are and its handle (``patterns.c: plan_structure``), which the
+        Where the analysis's arrays are and its handle (``early.c: plan_structure``), which the
         plan keeps, with every array the thread reads or writes, until it is joined.
     nv, n : int
         The variables and coordinates.

@@ -56,14 +56,15 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
 
 @functools.cache
 def _library() -> Any:
-    """``patterns.c`` compiled (once per machine, like the kernels), or ``None``."""
-    return _native.load_source(__package__, "patterns.c", _SIGNATURES)
+    """``patterns.c`` and ``early.c`` compiled into one library (once per machine, like the kernels),
+    or ``None``."""
+    return _native.load_source(__package__, ("patterns.c", "early.c"), _SIGNATURES)
 
 
 _at = _native.address
 
 PLAN_BUILD, PLAN_ANALYSIS, PLAN_START = 1, 2, 4
-"""``patterns.c: plan_structure``'s flags: the build's arrays, the analysis's, and the analysis started."""
+"""``early.c: plan_structure``'s flags: the build's arrays, the analysis's, and the analysis started."""
 # The entries of its table: where each array starts in one of the two buffers (then every factor
 # type's positions and columns), and the triangle's room.
 (_BUILD_ARGS, _EARLY_ARGS, SIZES, OFFSETS, ORDER, VARIABLES, COUNTS, PERM, STATUS, COST, BUILD_STATUS, BPTR,
@@ -72,7 +73,7 @@ PLAN_BUILD, PLAN_ANALYSIS, PLAN_START = 1, 2, 4
 
 class Plan:
     """The arrays of a structure's build and of its analysis (``flags``), cut from two new buffers by
-    ``patterns.c: plan_structure``, which packs the C's arguments there and, with :data:`PLAN_START`,
+    ``early.c: plan_structure``, which packs the C's arguments there and, with :data:`PLAN_START`,
     starts the analysis on the worker thread (after the build where one is planned): one call, and
     views made only of the arrays read, when they are read (:meth:`int64`, :meth:`int32`).
 
@@ -97,7 +98,7 @@ class Plan:
     Attributes
     ----------
     handle : int or None
-        The analysis started (``patterns.c: early_start``'s handle), until :meth:`join`.
+        The analysis started (``early.c: early_start``'s handle), until :meth:`join`.
     """
 
     handle: int | None = None

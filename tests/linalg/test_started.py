@@ -1,5 +1,5 @@
 """A structure built on the worker thread while a problem evaluates its first residuals
-(``BlockStructure._shared_later``, ``patterns.c: early_start`` given the build): the arrays and the
+(``BlockStructure._shared_later``, ``early.c: early_start`` given the build): the arrays and the
 analysis of the structure built here, pooled as :meth:`~BlockStructure.shared` pools, refused
 edges raising as the constructor does, and safe after a fork, from threads and when dropped
 unfinished."""
