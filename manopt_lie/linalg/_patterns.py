@@ -137,6 +137,8 @@ class Plan:
             raise RuntimeError("patterns.c: the plan's buffers are not as long as the plan")
         self.handle = handle or None
         self._table: list[int] = self._int64[: _TABLE + 2 * k].tolist()
+        # where the thread writes its statuses (no module global read: join runs in __del__, also at exit)
+        self._status_at, self._build_status_at = self.address64(STATUS), self.address64(BUILD_STATUS)
 
     def int64(self, entry: int, length: int) -> NDArray[np.int64]:
         """The int64 array of this table ``entry`` (its first ``length`` entries)."""
@@ -160,7 +162,7 @@ class Plan:
     def built(self) -> int | None:
         """Waits for the build planned with the analysis and returns its status, or ``None`` in a process
         forked from the one that started it (its arrays are unwritten: build them here)."""
-        if self.handle is None or self._library.early_built(self.handle, self.address64(BUILD_STATUS)) != 0:
+        if self.handle is None or self._library.early_built(self.handle, self._build_status_at) != 0:
             return None
         return int(self._int64[self._table[BUILD_STATUS]])
 
@@ -169,7 +171,7 @@ class Plan:
         process, where the thread stayed in the parent). Until then, this plan keeps every array the
         thread touches."""
         handle, self.handle = self.handle, None
-        return handle is not None and self._library.early_join(handle, self.address64(STATUS)) == 0
+        return handle is not None and self._library.early_join(handle, self._status_at) == 0
 
     def __del__(self) -> None:
         self.join()  # never free what the thread may still write

@@ -186,3 +186,15 @@ def test_a_forked_child_makes_its_own_analysis(rng):
     other = chain_with_chords(60, 3, 10, np.random.default_rng(5))
     np.testing.assert_array_equal(fresh, other.variable_ordering())
     assert_same(S._early_analysis(), expected(S))  # the parent's own, unharmed
+
+
+def test_an_analysis_left_running_is_joined_without_module_globals(monkeypatch):
+    """A plan's thread is joined in ``__del__``, also as the interpreter exits, when the module's
+    globals may be gone already (``None``): joining reads none of them."""
+    edges = np.stack([np.arange(3000), np.arange(1, 3001)], axis=1)
+    S = BlockStructure._started(np.full(3001, 3), [(edges, 3)], False)
+    plan = S._early._plan
+    assert plan.handle is not None
+    for name in ("STATUS", "BUILD_STATUS", "_library", "_at"):
+        monkeypatch.setattr(_patterns, name, None)
+    assert plan.join() and plan.handle is None
