@@ -23,7 +23,7 @@ For each dataset (``$MANOPT_LIE_DATA`` or ``../shared/datasets``):
 A summary table follows: per dataset the LM, GN and dogleg ratios and the iterations
 ours/GTSAM, their geometric means, and the share of LM's time spent on what a solve does
 once (building the structure and analysing the pattern: :func:`setup_time`, the median of at least
-:data:`SETUP_SAMPLES`; "—" where LM ran
+:data:`SETUP_SAMPLES`, taken between the rounds of the solves; "—" where LM ran
 a small pose graph's iterations in compiled code, which builds neither: ``compiled`` in the JSON).
 ``python benchmarks/bench_pose_graph.py [--datasets …] [--repeat 3] [--reference] [--json out.json]``.
 """
@@ -31,8 +31,10 @@ a small pose graph's iterations in compiled code, which builds neither: ``compil
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -56,13 +58,18 @@ SETUP_SAMPLES, SETUP_SECONDS = 31, 1.0
 """Samples of :func:`setup_time`: at least 31, and more while they took less than a second in all (a
 difference of two ~ms timings, single samples on CSAIL spread from -0.5 to 1.3 ms on this VM: with 7,
 their median moved ±5 points of share between runs on CSAIL and intel, with 31 still 8-19 %; each
-sample costs two linearizations and solves)."""
+sample costs two linearizations and solves). They are taken in every round of the solves, a share of
+them after each (:func:`geodesic_runs`' ``between``): the set-up and the solve whose share it is are
+timed through the same stretch of the machine, whose speed drifts by up to 2x over seconds here (taken
+after all the solves, CSAIL's set-up read 0.32, 0.43 and 0.63 ms in three runs of the same code)."""
 data_dir = catalogue.default_data_dir
 
 
-def geodesic_runs(graph: PoseGraph, x0: Any, repeat: int) -> dict[str, dict[str, Any]]:
-    """Ours and GTSAM's (when installed) in alternation, ``repeat`` rounds: per solver the
-    median time, the iterations and the final geodesic cost (ours)."""
+def geodesic_runs(
+    graph: PoseGraph, x0: Any, repeat: int, between: Callable[[], None] | None = None
+) -> dict[str, dict[str, Any]]:
+    """Ours and GTSAM's (when installed) in alternation, ``repeat`` rounds, ``between`` called after
+    each: per solver the median time, the iterations and the final geodesic cost (ours)."""
 
     compiled: dict[str, bool] = {}
 
@@ -87,6 +94,8 @@ def geodesic_runs(graph: PoseGraph, x0: Any, repeat: int) -> dict[str, dict[str,
         for name, solve in solvers.items():
             last[name], seconds = solve()
             times[name].append(seconds)
+        if between is not None:
+            between()
     return {
         name: {"time": statistics.median(times[name]), "iterations": last[name].nit,
                "cost": graph.cost(last[name].x, "geodesic"),
@@ -113,10 +122,10 @@ def setup_time(graph: PoseGraph, x0: Any) -> float:
     return first - (time.perf_counter() - start)
 
 
-def setup_samples(graph: PoseGraph, x0: Any, at_least: int) -> list[float]:
-    """:func:`setup_time` ``at_least`` times, then more until the samples took :data:`SETUP_SECONDS`."""
+def setup_samples(graph: PoseGraph, x0: Any, at_least: int, seconds: float) -> list[float]:
+    """:func:`setup_time` ``at_least`` times, then more until the samples took ``seconds``."""
     samples, start = [], time.perf_counter()
-    while len(samples) < at_least or time.perf_counter() - start < SETUP_SECONDS:
+    while len(samples) < at_least or time.perf_counter() - start < seconds:
         samples.append(setup_time(graph, x0))
     return samples
 
@@ -138,8 +147,13 @@ def bench(name: str, repeat: int, reference: bool) -> list[dict[str, Any]]:
             "reference": "SE-Sync C++", "ratio": None if se_sync_time is None else (seconds + init_time) / se_sync_time,
         }
     )  # fmt: skip
-    runs = geodesic_runs(graph, x0, repeat)
-    setup = statistics.median(setup_samples(graph, x0, max(repeat, SETUP_SAMPLES)))
+    setups: list[float] = []  # SETUP_SAMPLES and SETUP_SECONDS spread over the rounds
+
+    def sample_setup() -> None:
+        setups.extend(setup_samples(graph, x0, math.ceil(SETUP_SAMPLES / repeat), SETUP_SECONDS / repeat))
+
+    runs = geodesic_runs(graph, x0, repeat, between=sample_setup)
+    setup = statistics.median(setups)
     for solver, run in runs.items():
         peer = runs.get(AGAINST.get(solver, ""))
         rows.append(
