@@ -40,6 +40,7 @@ __all__ = ["SimplicialLDL", "available", "ldl_backend"]
 FloatArray = NDArray[np.float64]
 IndexArray = NDArray[np.signedinteger]
 
+_at = _native.address
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
@@ -104,7 +105,7 @@ class SimplicialLDL:
         width: int = 1, cost: tuple[float, float] | None = None,
     ) -> None:  # fmt: skip
         indptr, rows, gather = triangle
-        lib, at = _library(), _native.address
+        lib, at = _library(), _at
         if cost is None:
             counts = column_counts.astype(np.float64)
             cost = (float(counts.sum()), float(np.dot(counts, counts)))
@@ -113,7 +114,7 @@ class SimplicialLDL:
         self._handle = lib.ldl_new(self._n, at(indptr), at(rows), at(gather), at(column_counts), width)
         if not self._handle:
             raise MemoryError("ldl.c: no memory for the factor (or its entries pass 32-bit indices)")
-        self._lib, self._factored = lib, False
+        self._lib, self._factored, self._perm_at = lib, False, at(perm)
 
     def __del__(self) -> None:
         if self._handle:
@@ -133,7 +134,7 @@ class SimplicialLDL:
             if data.size != self._entries:
                 raise ValueError(f"H.data holds {data.size} values; the analysed pattern stores {self._entries}")
         self._factored = False
-        status = self._lib.ldl_factor(self._handle, data.ctypes.data)
+        status = self._lib.ldl_factor(self._handle, _at(data))
         if status == -1:
             raise RuntimeError("ldl.c: L's pattern is not the one its symbolic analysis laid out")
         if status < self._n:
@@ -152,10 +153,10 @@ class SimplicialLDL:
         out = np.empty(b.shape)
         if b.ndim == 1:
             b = np.ascontiguousarray(b)
-            self._lib.ldl_solve_permuted(self._handle, self._perm.ctypes.data, b.ctypes.data, out.ctypes.data)
+            self._lib.ldl_solve_permuted(self._handle, self._perm_at, _at(b), _at(out))
             return out
         rhs = np.asfortranarray(b[self._perm])
-        self._lib.ldl_solve(self._handle, rhs.shape[1], self._n, rhs.ctypes.data)
+        self._lib.ldl_solve(self._handle, rhs.shape[1], self._n, _at(rhs))
         out[self._perm] = rhs
         return out
 
@@ -170,7 +171,7 @@ class SimplicialLDL:
             raise SingularSystemError("LDLᵀ: no factorization to read")
         n, below = self._n, self._lib.ldl_below(self._handle)
         lp, li, lx, d = np.empty(n + 1, np.int32), np.empty(below, np.int32), np.empty(below), np.empty(n)
-        self._lib.ldl_read(self._handle, lp.ctypes.data, li.ctypes.data, lx.ctypes.data, d.ctypes.data)
+        self._lib.ldl_read(self._handle, *(a.ctypes.data for a in (lp, li, lx, d)))  # (empty ones too)
         return lp, li, lx, d
 
     @property
