@@ -156,7 +156,7 @@ class SimplicialLDL:
             self._lib.ldl_solve_permuted(self._handle, self._perm_at, _at(b), _at(out))
             return out
         rhs = np.asfortranarray(b[self._perm])
-        self._lib.ldl_solve(self._handle, rhs.shape[1], self._n, _at(rhs))
+        self._lib.ldl_solve(self._handle, rhs.shape[1], self._n, rhs.ctypes.data)  # (column-major)
         out[self._perm] = rhs
         return out
 
