@@ -68,7 +68,7 @@ def factor_ids(k: int, var_ids: ArrayLike, residual_dim: int) -> IntArray:
     """Factor ``k``'s ``var_ids`` as a new ``(m, arity)`` array of ``intp``, its shape, dtype and
     ``residual_dim`` checked (its edges are :func:`check_edges`'s)."""
     ids = np.asarray(var_ids)
-    if ids.ndim != 2 or not np.issubdtype(ids.dtype, np.integer):
+    if ids.ndim != 2 or ids.dtype.kind not in "iu":  # integers (np.issubdtype: 3 µs in a cold solve)
         raise ValueError(f"factor {k}: var_ids must be an integer array (m, arity), got {ids.dtype} {ids.shape}")
     if int(residual_dim) != residual_dim or residual_dim < 1:
         raise ValueError(f"factor {k}: residual_dim must be a positive integer, got {residual_dim!r}")

@@ -31,6 +31,7 @@ __all__ = ["CholeskySolver", "FactorCost"]
 FloatArray = NDArray[np.float64]
 
 _NO_STATS: Mapping[str, float] = MappingProxyType({})
+_KINDS = {None: "", True: ":supernodal", False: ":simplicial"}  # in the pool's keys of CHOLMOD's analyses
 
 
 def _check_square(H: Any) -> sp.csc_matrix:
@@ -211,9 +212,8 @@ class CholeskySolver:
             a diagonal entry.
         """
         H = _check_square(H)
-        trusted = self._trusted is not None and all(
-            same_buffer(a, b) for a, b in zip((H.indptr, H.indices), self._trusted, strict=True)
-        )  # the structure's own pattern: canonical and symmetric by construction
+        own = self._trusted  # the structure's own pattern: canonical and symmetric by construction
+        trusted = own is not None and same_buffer(H.indptr, own[0]) and same_buffer(H.indices, own[1])
         if not trusted and not H.has_canonical_format:
             H = H.copy()
             H.sum_duplicates()
@@ -228,7 +228,7 @@ class CholeskySolver:
             # A dense structure's matrix, every entry stored: nothing to analyse, nothing worth pooling.
             impl = _Dense(H.indptr, H.indices)
         else:
-            kind = {None: "", True: ":supernodal", False: ":simplicial"}[self.supernodal]  # CHOLMOD's kinds apart
+            kind = _KINDS[self.supernodal]  # CHOLMOD's kinds apart
             inputs = self._structure._inputs if trusted and self._structure is not None else None
             key = pattern_key(self.backend + (kind if self.backend == "cholmod" else ""), H.indptr, H.indices, inputs)
             impl = ANALYSES.acquire(key)

@@ -111,7 +111,7 @@ class BlockStructure:
         """The constructor's work; ``on_worker``: the compiled build is left to the worker thread where
         it can run there (:meth:`_started`)."""
         d = np.asarray(dims)
-        if d.ndim != 1 or d.size == 0 or not np.issubdtype(d.dtype, np.integer) or (lowest := int(d.min())) < 1:
+        if d.ndim != 1 or d.size == 0 or d.dtype.kind not in "iu" or (lowest := int(d.min())) < 1:  # integers
             raise ValueError(f"dims must be a non-empty 1-D array of positive integers, got {d!r}")
         self.dims: IntArray = d.astype(np.intp)
         if len(factors) == 0:
