@@ -176,3 +176,20 @@ def test_the_explicit_backend_and_its_selected_inverse(rng):
     L = factor.L.toarray()
     perm = factor.perm
     np.testing.assert_allclose(L @ L.T, H.toarray()[np.ix_(perm, perm)], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("d", [1, 2, 6])
+def test_chains_of_every_width_factor_exactly(d):
+    """Variables of one dimension ``d``: chains of ``d`` columns (taken two or three at a time, six as
+    three and three) in the factorization and the solves, against the dense ``LDLᵀ`` of ``P H Pᵀ``,
+    the variables' analysis here and the coordinates' giving the same factor."""
+    rng = np.random.default_rng(d)
+    S, blocks, residuals = pose_graph(rng, n_poses=30, d=d)
+    H, _ = S.normal_equations(blocks, residuals)
+    form, order = (S.dims, *S.block_pattern), S.variable_ordering()
+    by_blocks = _ldl.ldl_backend(S.indptr, S.indices, form, order)
+    by_coordinates = _ldl.ldl_backend(S.indptr, S.indices)
+    for factor in (by_blocks, by_coordinates):
+        factor.factorize(H.data)
+        _check_factor(factor, H)
+    assert by_blocks.cost == by_coordinates.cost
