@@ -23,8 +23,8 @@ values (``factorize(data)``) and solves (``solve(b)``):
   C (:mod:`~manopt_lie.linalg._ldl`), from AMD's order and the column counts of its own
   compiled analysis, or from a structure's early analysis, which makes both on a worker thread:
   the automatic choice for a structure whose analysis found CHOLMOD's simplicial kind (2-D pose
-  graphs), 10–35 % faster per factorization than CHOLMOD's there, and nothing of CHOLMOD's made in
-  the first solve.
+  graphs), a factorization 0.69–0.72× CHOLMOD's there, and nothing of CHOLMOD's made in the first
+  solve.
 - ``qdldl`` (optional package ``qdldl``): AMD ordering and elimination tree
   computed once, LDLᵀ of the upper triangle refactored by ``Solver.update``.
 - ``superlu`` (SciPy, always present): SuperLU's multiple minimum degree
