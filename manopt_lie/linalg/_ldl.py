@@ -96,7 +96,9 @@ class SimplicialLDL:
         ``False``: the factor is simplicial ``LDLᵀ``.
 
     The factor's arrays are the C's (one allocation each for its integers and its floats, freed
-    with this object): a structure's first solve makes no NumPy array for them.
+    with this object): a structure's first solve makes no NumPy array for them. One thread at a
+    time factors and solves with it (its workspaces are its own), as with CHOLMOD's factor: the
+    pool of analyses lends it to one solver at a time.
     """
 
     supernodal = False
