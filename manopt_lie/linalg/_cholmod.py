@@ -74,7 +74,7 @@ from ._cholmod_types import (
     _Sparse,
     cvxopt_library,
 )
-from ._early import Analysis
+from ._early import Analysis, coordinates_cost
 from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._triangles import check_diagonal, columns, permuted_block_triangle
@@ -337,9 +337,7 @@ class Cholmod:
                 lnz, fl = simplicial.cost
             else:
                 lnz_b, fl_b = self.cost if counts is None else (float(counts.sum()), float(np.dot(counts, counts)))
-                nv = dims.size  # Σ_j c_j and Σ_j c_j² over the coordinates, c_j = d·c − a (see _expand)
-                lnz = d * d * lnz_b - nv * d * (d - 1) / 2
-                fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
+                lnz, fl = coordinates_cost(lnz_b, fl_b, dims.size, d)  # c_j = d·c − a (see _expand)
             switch = self._settings.supernodal_switch
             supernodal = wanted == _SUPERNODAL or (wanted != _SIMPLICIAL and fl >= switch * lnz)
             if supernodal and (block is None or not block.is_super):

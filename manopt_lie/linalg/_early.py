@@ -32,9 +32,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _amd, _patterns
+from ._cholmod_types import _DEFAULTS
 from ._patterns import Int32, Plan, StructureBuild, Triangle
 
-__all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial"]
+__all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial", "analyse_here", "coordinates_cost"]
 
 EARLY_ENTRIES = 1 << 20
 """The most stored entries of ``H`` for which a structure starts its analysis early (the triangle's rows
@@ -73,6 +74,37 @@ class Simplicial:
 
 
 _NOTHING = Analysis(None, None, None)
+
+
+def coordinates_cost(lnz_b: float, fl_b: float, nv: int, d: int) -> tuple[float, float]:
+    """``(Σ_j c_j, Σ_j c_j²)`` over ``B``'s columns from ``Σ c`` and ``Σ c²`` over the variables'
+    columns of ``L`` (``c`` blocks each, ``nv`` variables of dimension ``d``): column ``a`` of a
+    variable holds ``d·c − a`` entries (``early.c: early_run`` sums the same)."""
+    lnz = d * d * lnz_b - nv * d * (d - 1) / 2
+    fl = d**3 * fl_b - d * d * (d - 1) * lnz_b + nv * (d - 1) * d * (2 * d - 1) / 6
+    return lnz, fl
+
+
+def analyse_here(
+    dims: NDArray[np.intp], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32,
+    order: NDArray[np.intp],
+) -> Analysis:  # fmt: skip
+    """What an early analysis makes in ``order`` (AMD's, given), made here by the same compiled steps:
+    for a structure of variables of one ``dimension`` that started none (past :data:`EARLY_ENTRIES`),
+    which a solver of the automatic choice analyses. ``B``'s simplicial factor is made where CHOLMOD's
+    default choice of kind is simplicial, as on the thread."""
+    symbolic = _patterns.block_symbolic(block_indptr, block_rows, order)
+    if symbolic is None:
+        return Analysis(order, None, None, dimension)
+    variables, counts = symbolic
+    lnz, fl = coordinates_cost(float(counts.sum()), float(np.dot(counts, counts)), counts.size, dimension)
+    simplicial = None
+    if fl < _DEFAULTS["supernodal_switch"] * lnz:
+        made = _patterns.permuted_block_triangle(indptr, dims, block_indptr, block_rows, variables, upper=True)
+        if made is not None:
+            column_counts = ((dimension * counts)[:, None] - np.arange(dimension)).reshape(-1).astype(np.int32)
+            simplicial = Simplicial((lnz, fl), column_counts, made[0], made[1])
+    return Analysis(order, symbolic, simplicial, dimension)
 
 
 class EarlyAnalysis:

@@ -218,7 +218,9 @@ class CholeskySolver:
             H = H.copy()
             H.sum_duplicates()
         structure = self._structure if trusted else None
-        early = None if structure is None else structure._early_analysis()
+        early = None
+        if structure is not None:  # the variables' analysis; an automatic choice makes it where none started
+            early = structure._analysis() if self._auto else structure._early_analysis()
         if self._auto:  # CHOLMOD, or the compiled LDLᵀ where the structure's analysis made B's simplicial factor
             simplicial = early is not None and early.simplicial is not None and ldl_available()
             self.backend = "ldl" if simplicial else self._chosen

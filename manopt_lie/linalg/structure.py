@@ -35,7 +35,7 @@ from . import _factors
 from ._amd import variable_order
 from ._analyses import STRUCTURES, StructureInputs, digest
 from ._assembly import gradient_add, hessian_add
-from ._early import Analysis, EarlyAnalysis
+from ._early import Analysis, EarlyAnalysis, analyse_here
 from ._factors import FactorIndex, HessianScatter, coordinates, exclusive_cumsum, index_dtype, same_buffer
 from ._patterns import Pattern, StructureBuild, hessian_pattern
 from ._patterns_numpy import dense_pattern, dense_scatters, edge_coordinates, factor_scatter, sparse_pattern
@@ -129,6 +129,7 @@ class BlockStructure:
         self._variable_order: IntArray | None = None
         self._digest: bytes | None = None
         self._early: EarlyAnalysis | None = None
+        self._here: Analysis | None = None  # made at the first ask where no early analysis was started
         self._build: StructureBuild | None = None  # running on the worker, until _finish
         # Per factor: position in H.data of each entry of every A_eᵀA_e, and coordinate of
         # each column of A_e, in the index dtype (int32 below 2³¹ entries: half the memory).
@@ -137,7 +138,7 @@ class BlockStructure:
             a.flags.writeable = False
         self._inputs = StructureInputs(self.dims, [(f.var_ids, f.residual_dim) for f in self._factors], self.dense)
         squares = d.size * lowest**2 if uniform else int(np.dot(self.dims, self.dims))
-        dimension = lowest if uniform else 0
+        self._dimension = dimension = lowest if uniform else 0
         entries = EarlyAnalysis.entries(self.dims, dimension) if on_worker else 0  # its arrays cut with the build's
         build = None if dense else hessian_pattern(self.dims, self._n, squares, self._factors, entries, dimension)
         if build is None and uniform:
@@ -360,6 +361,18 @@ class BlockStructure:
         """What the analysis started at construction made (:mod:`~manopt_lie.linalg._early`; waited
         for), or ``None`` where none was started."""
         return None if self._early is None else self._early.result()
+
+    def _analysis(self) -> Analysis | None:
+        """:meth:`_early_analysis`, else, for variables of one dimension, the same made here once
+        (:func:`~manopt_lie.linalg._early.analyse_here`: a structure past
+        :data:`~manopt_lie.linalg._early.EARLY_ENTRIES`); ``None`` where neither can be made."""
+        if self._early is not None:
+            return self._early.result()
+        if self._here is None and self._dimension and self.dims.size and not self.dense:
+            order = self.variable_ordering()
+            if order is not None and self._indptr.dtype == np.int32 and self._block_pattern[0].dtype == np.int32:
+                self._here = analyse_here(self.dims, self._dimension, self._indptr, *self._block_pattern, order)
+        return self._here
 
     def fill_reducing_ordering(self) -> IntArray | None:
         """A fill-reducing permutation of ``H``'s coordinates: the :meth:`variable_ordering`, each

@@ -198,3 +198,33 @@ def test_an_analysis_left_running_is_joined_without_module_globals(monkeypatch):
     for name in ("STATUS", "BUILD_STATUS", "_library", "_at"):
         monkeypatch.setattr(_patterns, name, None)
     assert plan.join() and plan.handle is None
+
+
+def test_past_the_limit_an_automatic_solver_makes_the_same_analysis_here(monkeypatch, rng):
+    """A structure past ``EARLY_ENTRIES`` starts no analysis; a solver of the automatic choice makes the
+    same one on the caller (``_early.analyse_here``), once, and factors with the compiled ``LDLᵀ``
+    where it is simplicial; where CHOLMOD's rule says supernodal, CHOLMOD factors, with the symbolic
+    made here."""
+    monkeypatch.setattr(_early, "EARLY_ENTRIES", 100)
+    clear_caches()
+    S, blocks, residuals = pose_graph(np.random.default_rng(11), n_poses=120, d=3)
+    assert S._early is None
+    made = S._analysis()
+    assert_same(made, expected(S))
+    assert S._analysis() is made and S.variable_ordering() is made.order
+    H, g = S.normal_equations(blocks, residuals)
+    solver = CholeskySolver().bind(S)
+    x = solver(H, -g)
+    assert solver.backend == "ldl" and solver._impl.cost == made.simplicial.cost
+    np.testing.assert_allclose(H @ x, -g, atol=1e-9 * np.abs(g).max())
+    n = 60
+    edges = np.array([(i, j) for i in range(n) for j in range(i + 1, n) if rng.random() < 0.5])
+    dense = BlockStructure(np.full(n, 3), [(edges, 3)])
+    assert dense._early is None
+    assert_same(dense._analysis(), expected(dense), simplicial=False)
+    H = dense.add_diagonal(dense.normal_equations([rng.standard_normal((len(edges), 3, 6))],
+                                                  [np.zeros((len(edges), 3))])[0], 1.0)  # fmt: skip
+    solver = CholeskySolver().bind(dense)
+    solver(H, np.ones(H.shape[0]))
+    assert solver.backend == "cholmod" and solver._impl.supernodal
+    clear_caches()
