@@ -226,5 +226,6 @@ def test_past_the_limit_an_automatic_solver_makes_the_same_analysis_here(monkeyp
                                                   [np.zeros((len(edges), 3))])[0], 1.0)  # fmt: skip
     solver = CholeskySolver().bind(dense)
     solver(H, np.ones(H.shape[0]))
-    assert solver.backend == "cholmod" and solver._impl.supernodal
+    assert solver.backend == "cholmod"
+    assert not _cholmod.available() or solver._impl.supernodal  # (CVXOPT's interface does not tell)
     clear_caches()

@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from manopt_lie.linalg import BlockStructure, SelectedInverse, SingularSystemError, Supernodes, cholesky_factor
+from manopt_lie.linalg import BlockStructure, SelectedInverse, SingularSystemError, Supernodes, _ldl, cholesky_factor
 from manopt_lie.linalg.selected_inverse import CholeskyFactor
 
 from .helpers import random_factor_graph, random_values
 
-BACKENDS = ["cholmod", "ldl", "qdldl", "superlu"]
+# ldl is compiled here: skipped without a C compiler (MANOPT_LIE_NATIVE=0)
+BACKENDS = ["cholmod", pytest.param("ldl", marks=pytest.mark.skipif(not _ldl.available(), reason="no compiled ldl")),
+            "qdldl", "superlu"]  # fmt: skip
 
 
 def random_spd(rng: np.random.Generator, n_vars: int = 30) -> sp.csc_matrix:

@@ -9,7 +9,7 @@ import pytest
 from manopt_lie import SE2, SE3
 from manopt_lie.errors import ShapeError
 from manopt_lie.lie.uncertainty import right_to_left_covariance
-from manopt_lie.linalg import SingularSystemError
+from manopt_lie.linalg import SingularSystemError, _ldl
 from manopt_lie.optim import (
     GaussNewton,
     LeastSquaresProblem,
@@ -22,7 +22,9 @@ from manopt_lie.problems import costs
 from manopt_lie.problems.synthetic import cube, grid2d
 from tests.optim.test_blocks import landmark_world
 
-BACKENDS = ["cholmod", "ldl", "qdldl", "superlu"]
+# ldl is compiled here: skipped without a C compiler (MANOPT_LIE_NATIVE=0)
+BACKENDS = ["cholmod", pytest.param("ldl", marks=pytest.mark.skipif(not _ldl.available(), reason="no compiled ldl")),
+            "qdldl", "superlu"]  # fmt: skip
 METHODS = ["selected", "solve"]
 
 
