@@ -87,19 +87,20 @@ def coordinates_cost(lnz_b: float, fl_b: float, nv: int, d: int) -> tuple[float,
 
 def analyse_here(
     dims: NDArray[np.intp], dimension: int, indptr: Int32, block_indptr: Int32, block_rows: Int32,
-    order: NDArray[np.intp],
+    order: NDArray[np.intp], simplicial_always: bool = False,
 ) -> Analysis:  # fmt: skip
     """What an early analysis makes in ``order`` (AMD's, given), made here by the same compiled steps:
     for a structure of variables of one ``dimension`` that started none (past :data:`EARLY_ENTRIES`),
     which a solver of the automatic choice analyses. ``B``'s simplicial factor is made where CHOLMOD's
-    default choice of kind is simplicial, as on the thread."""
-    symbolic = _patterns.block_symbolic(block_indptr, block_rows, order)
+    default choice of kind is simplicial, as on the thread; with ``simplicial_always`` (the backend
+    ``ldl`` asked for), whatever its fill."""
+    symbolic = _patterns.block_symbolic(block_indptr, block_rows, order, bounded=not simplicial_always)
     if symbolic is None:
         return Analysis(order, None, None, dimension)
     variables, counts = symbolic
     lnz, fl = coordinates_cost(float(counts.sum()), float(np.dot(counts, counts)), counts.size, dimension)
     simplicial = None
-    if fl < _DEFAULTS["supernodal_switch"] * lnz:
+    if simplicial_always or fl < _DEFAULTS["supernodal_switch"] * lnz:
         made = _patterns.permuted_block_triangle(indptr, dims, block_indptr, block_rows, variables, upper=True)
         if made is not None:
             column_counts = ((dimension * counts)[:, None] - np.arange(dimension)).reshape(-1).astype(np.int32)

@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from .. import _native
 from . import _amd, _patterns
-from ._early import Analysis
+from ._early import Analysis, analyse_here
 from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._patterns import INT32_MAX, Triangle
@@ -220,30 +220,22 @@ def ldl_backend(
         if max(entries, indptr.size) >= INT32_MAX:
             raise ValueError("the backend 'ldl' factors patterns of 32-bit indices: H stores too many entries")
         indptr, indices = indptr.astype(np.int32), indices.astype(np.int32)
-    if early is not None and early.simplicial is not None and variables is not None and early.order is variables:
-        made = early.simplicial
-        return SimplicialLDL(made.triangle, made.perm, made.column_counts, entries, early.dimension, made.cost)
-    if blocks is None or variables is None:
-        cols = columns(indptr)
-        check_diagonal(cols, indices == cols)
-        order = _amd.amd_order(indptr, indices)
-        if order is None:
-            raise RuntimeError("AMD failed on H's pattern")
-        blocks, variables = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices), order
-    dims, block_indptr, block_rows = blocks
-    d = int(dims.min())
-    if int(dims.max()) != d:  # variables of several dimensions: their coordinates analysed one by one
-        order = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
-        blocks, variables, d = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices), order, 1
-        dims, block_indptr, block_rows = blocks
-    symbolic = _patterns.block_symbolic(block_indptr, block_rows, variables, bounded=False)
-    assert symbolic is not None  # no budget, 32-bit patterns: only memory fails it (raised)
-    postorder, block_counts = symbolic
-    # column j of a variable whose column of L holds c blocks of d rows holds d·c − j entries
-    counts = ((d * block_counts)[:, None] - np.arange(d)).reshape(-1).astype(np.int32)
-    made_triangle = _patterns.permuted_block_triangle(indptr, dims, block_indptr, block_rows, postorder, upper=True)
-    assert made_triangle is not None  # 32-bit patterns and the library
-    triangle, perm = made_triangle
-    if triangle[2].size >= TRIM_ENTRIES:
-        release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
-    return SimplicialLDL(triangle, perm, counts, entries, d)
+    if early is None or early.simplicial is None or variables is None or early.order is not variables:
+        if blocks is None or variables is None:
+            cols = columns(indptr)
+            check_diagonal(cols, indices == cols)
+            variables = _amd.amd_order(indptr, indices)
+            if variables is None:
+                raise RuntimeError("AMD failed on H's pattern")
+            blocks = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices)
+        dims = blocks[0]
+        if int(dims.min()) != int(dims.max()):  # variables of several dimensions: their coordinates one by one
+            variables = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
+            blocks = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices)
+        early = analyse_here(blocks[0], int(blocks[0][0]), indptr, blocks[1], blocks[2], variables, True)
+        if early.simplicial is not None and early.simplicial.triangle[2].size >= TRIM_ENTRIES:
+            release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
+    made = early.simplicial
+    if made is None:  # only without memory (raised) or the compiled code (checked above)
+        raise RuntimeError("ldl: the symbolic analysis failed")
+    return SimplicialLDL(made.triangle, made.perm, made.column_counts, entries, early.dimension, made.cost)

@@ -65,8 +65,8 @@ _at = _native.address
 
 PLAN_BUILD, PLAN_ANALYSIS, PLAN_START = 1, 2, 4
 """``early.c: plan_structure``'s flags: the build's arrays, the analysis's, and the analysis started."""
-# The entries of its table: where each array starts in one of the two buffers (then every factor
-# type's positions and columns), and the triangle's room.
+# The entries of its table (early.c's PLAN_* enum): where each array starts in one of the two
+# buffers (then every factor type's positions and columns), and the triangle's room.
 (_BUILD_ARGS, _EARLY_ARGS, SIZES, OFFSETS, ORDER, VARIABLES, COUNTS, PERM, STATUS, COST, BUILD_STATUS, BPTR,
  CANDIDATES, DIAGONAL, AMD_ORDER, COLCOUNT, TRI_INDPTR, TRI_ROWS, TRI_GATHER, TRI_SIZE, _TABLE) = range(21)  # fmt: skip
 
@@ -132,9 +132,9 @@ class Plan:
         self._library, self._base64 = _library(), _at(self._int64)  # (for __del__, also at exit)
         handle = self._library.plan_structure(_at(head), _DEFAULTS["supernodal_switch"])
         if handle == -2:
-            raise MemoryError("patterns.c: no memory to start the analysis")
+            raise MemoryError("early.c: no memory to start the analysis")
         if handle < 0:
-            raise RuntimeError("patterns.c: the plan's buffers are not as long as the plan")
+            raise RuntimeError("early.c: the plan's buffers are not as long as the plan")
         self.handle = handle or None
         self._table: list[int] = self._int64[: _TABLE + 2 * k].tolist()
         # where the thread writes its statuses (no module global read: join runs in __del__, also at exit)
@@ -153,11 +153,6 @@ class Plan:
     def address64(self, entry: int) -> int:
         """The address of the int64 array of this table ``entry``."""
         return self._base64 + 8 * self._table[entry]
-
-    @property
-    def triangle_size(self) -> int:
-        """The room of the analysis's triangle."""
-        return self._table[TRI_SIZE]
 
     def built(self) -> int | None:
         """Waits for the build planned with the analysis and returns its status, or ``None`` in a process
