@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from . import _amd, _patterns
 from ._cholmod_types import _DEFAULTS
+from ._factors import exclusive_cumsum
 from ._patterns import Int32, Plan, StructureBuild, Triangle
 
 __all__ = ["EARLY_ENTRIES", "Analysis", "EarlyAnalysis", "Simplicial", "analyse_here", "coordinates_cost"]
@@ -90,22 +91,29 @@ def analyse_here(
     order: NDArray[np.intp], simplicial_always: bool = False,
 ) -> Analysis:  # fmt: skip
     """What an early analysis makes in ``order`` (AMD's, given), made here by the same compiled steps:
-    for a structure of variables of one ``dimension`` that started none (past :data:`EARLY_ENTRIES`),
-    which a solver of the automatic choice analyses. ``B``'s simplicial factor is made where CHOLMOD's
-    default choice of kind is simplicial, as on the thread; with ``simplicial_always`` (the backend
-    ``ldl`` asked for), whatever its fill."""
-    symbolic = _patterns.block_symbolic(block_indptr, block_rows, order, bounded=not simplicial_always)
+    for a structure that started none — past :data:`EARLY_ENTRIES`, or of variables of several
+    dimensions (``dimension`` 0: each block then counts its rows, and :attr:`Analysis.symbolic`
+    is left out) — which a solver of the automatic choice analyses. ``B``'s simplicial factor is made
+    where CHOLMOD's default choice of kind is simplicial, as on the thread; with
+    ``simplicial_always`` (the backend ``ldl`` asked for), whatever its fill."""
+    weights = None if dimension else dims
+    symbolic = _patterns.block_symbolic(block_indptr, block_rows, order, not simplicial_always, weights)
     if symbolic is None:
         return Analysis(order, None, None, dimension)
     variables, counts = symbolic
-    lnz, fl = coordinates_cost(float(counts.sum()), float(np.dot(counts, counts)), counts.size, dimension)
+    if dimension:  # column a of a variable whose column of L holds c blocks: d·c − a rows
+        lnz, fl = coordinates_cost(float(counts.sum()), float(np.dot(counts, counts)), counts.size, dimension)
+        column_counts = ((dimension * counts)[:, None] - np.arange(dimension)).reshape(-1)
+    else:  # c rows in its first column, one fewer in each next
+        d = dims[variables]
+        column_counts = np.repeat(counts, d) - (np.arange(int(d.sum())) - np.repeat(exclusive_cumsum(d)[:-1], d))
+        lnz, fl = float(column_counts.sum()), float(np.dot(column_counts.astype(np.float64), column_counts))
     simplicial = None
     if simplicial_always or fl < _DEFAULTS["supernodal_switch"] * lnz:
         made = _patterns.permuted_block_triangle(indptr, dims, block_indptr, block_rows, variables, upper=True)
         if made is not None:
-            column_counts = ((dimension * counts)[:, None] - np.arange(dimension)).reshape(-1).astype(np.int32)
-            simplicial = Simplicial((lnz, fl), column_counts, made[0], made[1])
-    return Analysis(order, symbolic, simplicial, dimension)
+            simplicial = Simplicial((lnz, fl), column_counts.astype(np.int32), made[0], made[1])
+    return Analysis(order, symbolic if dimension else None, simplicial, dimension)
 
 
 class EarlyAnalysis:

@@ -31,7 +31,6 @@ from numpy.typing import NDArray
 from .. import _native
 from . import _amd, _patterns
 from ._early import Analysis, analyse_here
-from ._factors import coordinates, exclusive_cumsum
 from ._memory import TRIM_ENTRIES, release_freed_memory
 from ._patterns import INT32_MAX, Triangle
 from ._triangles import check_diagonal, columns
@@ -229,10 +228,8 @@ def ldl_backend(
                 raise RuntimeError("AMD failed on H's pattern")
             blocks = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices)
         dims = blocks[0]
-        if int(dims.min()) != int(dims.max()):  # variables of several dimensions: their coordinates one by one
-            variables = coordinates(exclusive_cumsum(dims.astype(np.intp)), dims, variables)
-            blocks = (np.ones(indptr.size - 1, dtype=np.intp), indptr, indices)
-        early = analyse_here(blocks[0], int(blocks[0][0]), indptr, blocks[1], blocks[2], variables, True)
+        dimension = int(dims[0]) if int(dims.min()) == int(dims.max()) else 0  # 0: several
+        early = analyse_here(dims, dimension, indptr, blocks[1], blocks[2], variables, True)
         if early.simplicial is not None and early.simplicial.triangle[2].size >= TRIM_ENTRIES:
             release_freed_memory()  # the analysis's transients, kept by malloc, would stay resident
     made = early.simplicial

@@ -46,7 +46,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "build_structure": (ctypes.c_int, [_P]),
     "permuted_triangle": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, ctypes.c_int, _I, _P, _P, _P, _P]),
     "expand_supernodes": (ctypes.c_int, [_I, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]),
-    "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P]),
+    "block_symbolic": (ctypes.c_int, [_I, _P, _P, _P, _I, _P, _P, _P]),
     "early_start": (_P, [_P, _P, ctypes.c_double]),
     "early_built": (ctypes.c_int, [_P, _P]),
     "early_join": (ctypes.c_int, [_P, _P]),
@@ -284,11 +284,12 @@ def permuted_block_triangle(
 
 def block_symbolic(
     block_indptr: NDArray[np.signedinteger], block_rows: NDArray[np.signedinteger], order: NDArray[np.intp],
-    bounded: bool = True,
+    bounded: bool = True, weights: NDArray[np.signedinteger] | None = None,
 ) -> tuple[NDArray[np.intp], NDArray[np.int64]] | None:  # fmt: skip
     """The variables' simplicial symbolic factorization in ``order`` (``patterns.c:
     block_symbolic``): their postordered order and the blocks in each column of ``L`` (its diagonal
-    block included), in that order; ``None`` without the library or where ``L`` would hold more
+    block included), in that order — with ``weights`` (the variables' dimensions) the rows, each
+    block counting its variable's; ``None`` without the library or where ``L`` would hold more
     than :data:`SIMPLICIAL_FILL` blocks per stored block (CHOLMOD then analyses), unless not
     ``bounded``."""
     library = _library()
@@ -298,8 +299,9 @@ def block_symbolic(
     order64 = np.ascontiguousarray(order, dtype=np.int64)
     variables, counts = np.empty(nv, dtype=np.int64), np.empty(nv, dtype=np.int64)
     budget = SIMPLICIAL_FILL * block_rows.size if bounded else INT64_MAX
-    status = library.block_symbolic(nv, _at(block_indptr), _at(block_rows), _at(order64),
-                                    budget, _at(variables), _at(counts))  # fmt: skip
+    weights64 = None if weights is None else np.ascontiguousarray(weights, dtype=np.int64)
+    status = library.block_symbolic(nv, _at(block_indptr), _at(block_rows), _at(order64), budget, _at(variables),
+                                    _at(counts), None if weights64 is None else _at(weights64))  # fmt: skip
     if status == -1:
         raise MemoryError("patterns.c: no memory for the variables' symbolic factorization")
     return (variables.astype(np.intp, copy=False), counts) if status == 0 else None

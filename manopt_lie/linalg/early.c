@@ -13,7 +13,7 @@ int build_structure(const i64* args);
 int permuted_triangle(i64 nv, const i64* dims, const i32* h_indptr, const i32* bptr, const i32* brows,
                       const i64* order, int upper, i64 size, i32* indptr, i32* rows, i32* gather, i64* perm);
 int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, i64 budget, i64* variables,
-                   i64* counts);
+                   i64* counts, const i64* weights);
 
 /* A new structure's analysis on a worker thread (_early.py), after its build where it is given one
  * (build: build_structure's packed arguments, whose outputs the analysis then reads; NULL where
@@ -81,7 +81,7 @@ static void early_run(early_analysis* a, int build) {
   if (a->status[0] != 0 && a->status[0] != 1) return; /* AMD_OK, AMD_OK_BUT_JUMBLED */
   for (i64 k = 0; k < nv; ++k) a->order[k] = a->amd_order[k];
   i64 budget = a->fill * a->bptr[nv]; /* per block: the build's brows are its room, the nb blocks first */
-  a->status[1] = block_symbolic(nv, a->bptr, a->brows, a->order, budget, a->variables, a->counts);
+  a->status[1] = block_symbolic(nv, a->bptr, a->brows, a->order, budget, a->variables, a->counts, NULL);
   if (a->status[1] != 0 || a->size <= 0) return;
   double lnz_b = 0, fl_b = 0; /* sum c and sum c^2 over the variables, then over the coordinates */
   for (i64 k = 0; k < nv; ++k) lnz_b += (double)a->counts[k], fl_b += (double)a->counts[k] * (double)a->counts[k];

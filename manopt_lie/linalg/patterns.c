@@ -406,11 +406,12 @@ int expand_supernodes(i64 nsuper, const i64* dims, const i32* super_b, const i32
  * order, by an iterative depth-first search), and the count of blocks in each column of L, its
  * diagonal block included, by the row subtrees (row k of L holds the nodes on the tree paths from
  * the rows of column k up to k). Writes variables (nv: the postordered order, variables[j] the
- * j-th) and counts (nv, in that order). The row subtrees take nnz(L) steps: past `budget` the
- * factor fills in too much for a simplicial one, and the caller asks CHOLMOD instead. Returns 0,
- * -1 without memory, -2 past the budget. */
+ * j-th) and counts (nv, in that order). With weights (the variables' dimensions, or NULL: 1 each),
+ * each block counts its rows' weight: the rows of each column of L in coordinates. The row
+ * subtrees take nnz(L) steps: past `budget` the factor fills in too much for a simplicial one, and
+ * the caller asks CHOLMOD instead. Returns 0, -1 without memory, -2 past the budget. */
 int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, i64 budget, i64* variables,
-                   i64* counts) {
+                   i64* counts, const i64* weights) {
   i64* work = malloc(sizeof(i64) * (size_t)(6 * nv + 1));
   if (!work) return -1;
   i64 *rank = work, *parent = work + nv, *ancestor = work + 2 * nv, *mark = work + 3 * nv;
@@ -433,12 +434,12 @@ int block_symbolic(i64 nv, const i32* bptr, const i32* brows, const i64* order, 
     counts[k] = 0;
   }
   for (i64 k = 0; k < nv; ++k) {
-    ++counts[k];
-    i64 v = order[k];
+    i64 v = order[k], w = weights ? weights[v] : 1; /* row k's blocks: its variable's rows each */
+    counts[k] += w;
     for (i64 p = bptr[v]; p < bptr[v + 1]; ++p)
       for (i64 j = rank[brows[p]]; j != -1 && j < k && mark[j] != k; j = parent[j]) {
         mark[j] = k;
-        ++counts[j];
+        counts[j] += w;
         if (++steps > budget) {
           free(work);
           return -2;

@@ -363,12 +363,13 @@ class BlockStructure:
         return None if self._early is None else self._early.result()
 
     def _analysis(self) -> Analysis | None:
-        """:meth:`_early_analysis`, else, for variables of one dimension, the same made here once
+        """:meth:`_early_analysis`, else the same made here once
         (:func:`~manopt_lie.linalg._early.analyse_here`: a structure past
-        :data:`~manopt_lie.linalg._early.EARLY_ENTRIES`); ``None`` where neither can be made."""
+        :data:`~manopt_lie.linalg._early.EARLY_ENTRIES`, or of variables of several dimensions);
+        ``None`` where neither can be made."""
         if self._early is not None:
             return self._early.result()
-        if self._here is None and self._dimension and self.dims.size and not self.dense:
+        if self._here is None and not self.dense:
             order = self.variable_ordering()
             if order is not None and self._indptr.dtype == np.int32 and self._block_pattern[0].dtype == np.int32:
                 self._here = analyse_here(self.dims, self._dimension, self._indptr, *self._block_pattern, order)

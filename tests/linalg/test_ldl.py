@@ -194,3 +194,39 @@ def test_chains_of_every_width_factor_exactly(d):
         factor.factorize(H.data)
         _check_factor(factor, H)
     assert by_blocks.cost == by_coordinates.cost
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_variables_of_several_dimensions_are_analysed_by_their_blocks(seed):
+    """Variables of dimensions 3 and 6: each block of the variables' analysis counts its rows
+    (``block_symbolic``'s weights), which gives the coordinates' column counts — the same fill as
+    the analysis of the coordinates in that order — and an automatic solver takes the compiled
+    ``LDLᵀ`` where CHOLMOD's rule says simplicial, solving as CHOLMOD does."""
+    from manopt_lie.linalg import _early, _patterns
+    from manopt_lie.linalg._factors import coordinates, exclusive_cumsum
+
+    rng = np.random.default_rng(seed)
+    dims, factors = random_factor_graph(rng, n_vars=40)
+    S = BlockStructure(dims, factors)
+    H, g = S.normal_equations(*random_values(rng, dims, factors)[:2])
+    S.add_diagonal(H, 1.0, inplace=True)
+    order = S.variable_ordering()
+    made = _early.analyse_here(S.dims, 0, S.indptr, *S.block_pattern, order, simplicial_always=True)
+    assert made.symbolic is None and made.simplicial is not None
+    unweighted = _patterns.block_symbolic(*S.block_pattern, order, bounded=False)
+    weighted = _patterns.block_symbolic(*S.block_pattern, order, bounded=False, weights=np.full(dims.size, 3))
+    np.testing.assert_array_equal(weighted[0], unweighted[0])
+    np.testing.assert_array_equal(weighted[1], 3 * unweighted[1])  # uniform weights: the blocks' rows
+    by_coordinates = _ldl.ldl_backend(S.indptr, S.indices)  # AMD's order of the coordinates
+    in_order = _early.analyse_here(np.ones(S.n, np.intp), 1, S.indptr, S.indptr, S.indices,
+                                   coordinates(exclusive_cumsum(S.dims), S.dims, order), simplicial_always=True)
+    assert made.simplicial.cost == in_order.simplicial.cost  # the variables' order, coordinate by coordinate
+    factor = _ldl.ldl_backend(S.indptr, S.indices, (S.dims, *S.block_pattern), order)
+    for f in (factor, by_coordinates):
+        f.factorize(H.data)
+        _check_factor(f, H)
+    clear_caches()
+    auto = CholeskySolver().bind(S)
+    x = auto(H, g)
+    np.testing.assert_allclose(x, np.linalg.solve(H.toarray(), g), rtol=1e-9)
+    assert (auto.backend == "ldl") == (S._analysis().simplicial is not None)
