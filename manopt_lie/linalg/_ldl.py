@@ -108,16 +108,16 @@ class SimplicialLDL:
         width: int = 1, cost: tuple[float, float] | None = None,
     ) -> None:  # fmt: skip
         indptr, rows, gather = triangle
-        lib, at = _library(), _at
+        lib = _library()
         if cost is None:
             counts = column_counts.astype(np.float64)
             cost = (float(counts.sum()), float(np.dot(counts, counts)))
         self.cost = cost
         self._n, self._entries, self._triangle, self._perm = indptr.size - 1, entries, triangle, perm
-        self._handle = lib.ldl_new(self._n, at(indptr), at(rows), at(gather), at(column_counts), width)
+        self._handle = lib.ldl_new(self._n, _at(indptr), _at(rows), _at(gather), _at(column_counts), width)
         if not self._handle:
             raise MemoryError("ldl.c: no memory for the factor (or its entries pass 32-bit indices)")
-        self._lib, self._factored, self._perm_at = lib, False, at(perm)
+        self._lib, self._factored, self._perm_at = lib, False, _at(perm)
 
     def __del__(self) -> None:
         if self._handle:
