@@ -369,10 +369,9 @@ class BlockStructure:
         ``None`` where neither can be made."""
         if self._early is not None:
             return self._early.result()
-        if self._here is None and not self.dense:
-            order = self.variable_ordering()
-            if order is not None and self._indptr.dtype == np.int32 and self._block_pattern[0].dtype == np.int32:
-                self._here = analyse_here(self.dims, self._dimension, self._indptr, *self._block_pattern, order)
+        if self._here is None and not self.dense and (order := self.variable_ordering()) is not None:
+            # (64-bit patterns: nothing analysed; the compiled steps decline them)
+            self._here = analyse_here(self.dims, self._dimension, self._indptr, *self._block_pattern, order)
         return self._here
 
     def fill_reducing_ordering(self) -> IntArray | None:

@@ -10,7 +10,17 @@ import scipy.sparse as sp
 from hypothesis import given
 from hypothesis import strategies as st
 
-from manopt_lie.linalg import BlockStructure, CholeskySolver, SingularSystemError, _cholmod, _ldl, clear_caches
+from manopt_lie.linalg import (
+    BlockStructure,
+    CholeskySolver,
+    SingularSystemError,
+    _cholmod,
+    _early,
+    _ldl,
+    _patterns,
+    clear_caches,
+)
+from manopt_lie.linalg._factors import coordinates, exclusive_cumsum
 from manopt_lie.linalg.selected_inverse import cholesky_factor
 
 from .helpers import pose_graph, random_factor_graph, random_values
@@ -202,9 +212,6 @@ def test_variables_of_several_dimensions_are_analysed_by_their_blocks(seed):
     (``block_symbolic``'s weights), which gives the coordinates' column counts — the same fill as
     the analysis of the coordinates in that order — and an automatic solver takes the compiled
     ``LDLᵀ`` where CHOLMOD's rule says simplicial, solving as CHOLMOD does."""
-    from manopt_lie.linalg import _early, _patterns
-    from manopt_lie.linalg._factors import coordinates, exclusive_cumsum
-
     rng = np.random.default_rng(seed)
     dims, factors = random_factor_graph(rng, n_vars=40)
     S = BlockStructure(dims, factors)
